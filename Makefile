@@ -1,0 +1,68 @@
+# mta_sim_ros developer entry points. CI runs `make test` via .ci/run.
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := venv
+
+# Network rule: DDS discovery stays on loopback for every target.
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+# Default domain; a test or caller may override it (make ROS_DOMAIN_ID=7 ...).
+ROS_DOMAIN_ID ?= 42
+export ROS_DOMAIN_ID
+# No prompts (CI has no stdin); no "new pip available" noise.
+export PIP_NO_INPUT := 1
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
+PYTHON ?= python3.11
+VENV ?= .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.mta_sim_ros.stamp
+
+# colcon workspace dirs (ignored by git).
+COLCON_BASE ?= .
+COLCON_ARGS ?=
+
+SCENE ?= config/scenes/headland_turn.yaml
+BAG ?= bags/headland_turn.mcap
+
+.PHONY: venv run test colcon clean distclean help
+
+help:
+	@echo "make venv     create $(VENV) (Python 3.11) with requirements.txt + pip install -e ."
+	@echo "make run      run the main scene ($(SCENE)) and record $(BAG)"
+	@echo "make test     run the test suite (pytest)"
+	@echo "make colcon   colcon build into $(COLCON_BASE)/build, install, log"
+	@echo "make clean    remove build artifacts (keeps $(VENV)); distclean also removes $(VENV)"
+
+venv: $(STAMP)
+
+# Recreated/updated when requirements.txt, setup.py or setup.cfg change.
+$(STAMP): requirements.txt setup.py setup.cfg
+	@command -v $(PYTHON) >/dev/null || { echo "$(PYTHON) not found (set PYTHON=...)" >&2; exit 1; }
+	@test -x $(VPY) || { echo "creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
+	$(VPY) -m pip install -q -r requirements.txt
+	$(VPY) -m pip install -q -e .
+	@touch $@
+
+run: $(STAMP)
+	@mkdir -p $(dir $(BAG))
+	$(VENV)/bin/mta run --scene $(SCENE) --bag $(BAG)
+
+test: $(STAMP)
+	$(VPY) -m pytest -q test
+
+# --paths (not --base-paths): build exactly this package; a recursive crawl
+# would also find the package.xml files shipped inside $(VENV).
+colcon: $(STAMP)
+	$(VENV)/bin/colcon --log-base $(COLCON_BASE)/log build \
+		--paths . \
+		--build-base $(COLCON_BASE)/build \
+		--install-base $(COLCON_BASE)/install \
+		$(COLCON_ARGS)
+
+clean:
+	rm -rf build install log .pytest_cache *.egg-info
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

@@ -1,0 +1,76 @@
+"""Build script for the ament_python package mta_sim_ros.
+
+Works both for colcon (ament_python build type, `ros2 run mta_sim_ros <exe>`)
+and for plain pip (`pip install -e .` puts `mta` on the venv's bin/):
+
+* colcon runs `setup.py install --install-scripts $base/lib/mta_sim_ros`
+  (taken from setup.cfg [install] install_scripts), so the console scripts
+  land in <install>/mta_sim_ros/lib/mta_sim_ros where `ros2 run` looks.
+* pip builds a wheel; a wheel carries entry points rather than scripts, and
+  pip generates the launchers in the environment's scripts dir (bin/), so
+  setup.cfg's install_scripts does not apply there.
+"""
+
+import glob
+import os
+from collections import defaultdict
+
+from setuptools import find_packages, setup
+
+package_name = 'mta_sim_ros'
+
+
+def config_data_files():
+    """Install config/**/*.yaml to share/<pkg>/config/..., keeping subfolders.
+
+    Globbed at build time so new scene/train files are picked up without
+    editing this file. Paths stay relative to setup.py (setuptools and colcon
+    require relative data_files sources).
+    """
+    here = os.path.dirname(os.path.abspath(__file__))
+    by_dir = defaultdict(list)
+    for path in sorted(glob.glob(os.path.join(here, 'config', '**', '*.yaml'),
+                                 recursive=True)):
+        rel = os.path.relpath(path, here)
+        by_dir[os.path.join('share', package_name, os.path.dirname(rel))].append(rel)
+    return sorted(by_dir.items())
+
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages',
+            ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ] + config_data_files(),
+    # Plain-Python runtime deps only. The ROS 2 wheels (ros-jazzy-rclpy,
+    # ros-jazzy-common-interfaces) are deliberately NOT listed: on a real ROS
+    # install rclpy and the message packages come from the ROS distro (apt),
+    # and pip must not pull a second, conflicting copy. See requirements.txt.
+    # Lower bounds are loose enough for Ubuntu 24.04 (ROS Jazzy) apt versions.
+    install_requires=[
+        'numpy>=1.24',
+        'scipy>=1.11',
+        'pyyaml>=6.0',
+        'mcap>=1.1',
+        'mcap-ros2-support>=0.5',
+    ],
+    extras_require={
+        'plot': ['matplotlib>=3.6'],
+        'test': ['pytest>=7'],
+    },
+    zip_safe=True,
+    maintainer='mta_sim_ros maintainers',
+    maintainer_email='mta-sim-ros@example.com',
+    description='Tractor-train (multi-trailer) simulator for ROS 2 Jazzy',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={
+        'console_scripts': [
+            'mta = mta_sim_ros.cli:main',
+            'sim_node = mta_sim_ros.node:main',
+        ],
+    },
+)
