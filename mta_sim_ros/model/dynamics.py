@@ -1,0 +1,171 @@
+"""The equations of motion in Cauchy form, assembled from the element lists (MODEL.md [3], [9]-[11]).
+
+State y (``StateLayout``):  x_A1, y_A1, th_1..th_n, psi_1, V, z
+    q = (x_A1, y_A1, th_1..th_n)   generalized coordinates (m, m, rad...)
+    psi_1                          steering angle, a state of the actuator (rad)
+    V                              pseudo-velocity: signed speed of A_1 (m/s)
+    z                              integral state of the speed governor (N; constant 0 otherwise)
+Input, held over a step: (steering command, rad; speed set-point, m/s).
+
+    q'     = G(q, psi_1) V,  G = (cos(th_1 + psi_1), sin(th_1 + psi_1), kapT_1 .. kapT_n)
+    psi_1' = actuator(command, psi_1)
+    M V'   = F_A1 - sum_k F_Bk kapB_k - R             (one pseudo-velocity: M is a scalar)
+
+with M and the velocity term R built by one of the article's two algorithms:
+    algorithm 2 (default): direct differentiation by the pseudo-velocity,
+        M = sum_k m_k kapC_k^2 + J_k kapT_k^2,   R = 1/2 M' V
+    algorithm 1: the holonomic equations M_h q'' + h = Q_h of the n + 2 coordinates reduced by G,
+        M = G^T M_h G,   R = G^T (M_h G' V + h)      (see ``holonomic.py``)
+Both are exact; a test holds them equal to round-off.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import forces
+from .actuator import steering_rate
+from .chain import Chain, ChainGeometry, chain
+from .spec import Train
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Indices into the state vector of a train with n carts."""
+
+    n: int
+
+    @property
+    def x(self) -> int:
+        return 0
+
+    @property
+    def y(self) -> int:
+        return 1
+
+    @property
+    def heading(self) -> slice:
+        return slice(2, 2 + self.n)
+
+    @property
+    def steering(self) -> int:
+        return 2 + self.n
+
+    @property
+    def speed(self) -> int:
+        return 3 + self.n
+
+    @property
+    def governor(self) -> int:
+        return 4 + self.n
+
+    @property
+    def size(self) -> int:
+        return 5 + self.n
+
+
+@dataclass
+class Terms:
+    """Everything the equations produce at one state and input (SI units)."""
+
+    chain: Chain
+    mass: float  # M, kg: T = 1/2 M V^2
+    velocity_term: float  # R, N
+    resistance: list  # F_Bk per cart, N (signed: > 0 opposes forward motion of B_k)
+    traction: float  # F_A1, N
+    steering_rate: float  # psi_1', rad/s
+    acceleration: float  # V', m/s^2
+    governor_rate: float  # z', N/s
+
+
+class Model:
+    """The equations of one train. Immutable after construction; the state is a numpy array."""
+
+    def __init__(self, train: Train, algorithm: int = 2):
+        if algorithm not in (1, 2):
+            raise ValueError(f"algorithm: {algorithm} must be 1 (holonomic reduction) or 2 (direct)")
+        self.train = train
+        self.algorithm = algorithm
+        self.layout = StateLayout(train.n)
+        self.geom = ChainGeometry.of(train)
+        self.resistances = forces.cart_resistances(train)
+        self.masses = tuple(c.mass for c in train.carts)
+        self.inertias = tuple(c.yaw_inertia for c in train.carts)
+        if algorithm == 1:
+            from .holonomic import HolonomicReduction
+
+            self._holonomic = HolonomicReduction(train)
+
+    # -- the equations ---------------------------------------------------------------------
+    def terms(self, y, command: float, v_set: float) -> Terms:
+        """Evaluate the model at state y with the held input (command, v_set)."""
+        L = self.layout
+        n = L.n
+        yl = y.tolist() if isinstance(y, np.ndarray) else list(y)
+        heading = yl[2 : 2 + n]
+        psi1, V, z = yl[L.steering], yl[L.speed], yl[L.governor]
+        psi_rate = steering_rate(self.train.actuator, psi1, command)
+        ch = chain(self.geom, heading, psi1, V, psi_rate)
+
+        if self.algorithm == 2:
+            mass, velocity_term = self._direct(ch, V)
+        else:
+            mass, velocity_term = self._holonomic.reduce(yl, ch, V, psi_rate)
+
+        v0 = self.train.smoothing_speed
+        resistance = [r.force(kb * V, v0) for r, kb in zip(self.resistances, ch.kapB)]
+        generalized_resistance = sum(f * kb for f, kb in zip(resistance, ch.kapB))
+
+        traction_spec = self.train.traction
+        governor_rate = 0.0
+        if traction_spec.law == "prescribed_speed":
+            acceleration = forces.prescribed_acceleration(traction_spec, V, v_set)
+            traction = mass * acceleration + generalized_resistance + velocity_term  # inverse dynamics
+        else:
+            if traction_spec.law == "governor":
+                traction, governor_rate = forces.governor(traction_spec, V, v_set, z)
+            else:
+                traction = traction_spec.force
+            acceleration = (traction - generalized_resistance - velocity_term) / mass
+        return Terms(ch, mass, velocity_term, resistance, traction, psi_rate, acceleration, governor_rate)
+
+    def _direct(self, ch: Chain, V: float) -> tuple[float, float]:
+        """Algorithm 2: M = sum m kapC^2 + J kapT^2 and R = 1/2 M' V, M' exact from the chain."""
+        mass = 0.0
+        mass_rate = 0.0
+        for m, J, kc, kc_d, kt, kt_d in zip(self.masses, self.inertias, ch.kapC, ch.kapC_d, ch.kapT, ch.kapT_d):
+            mass += m * kc * kc + J * kt * kt
+            mass_rate += 2.0 * (m * kc * kc_d + J * kt * kt_d)
+        return mass, 0.5 * mass_rate * V
+
+    def derivative(self, y, command: float, v_set: float) -> tuple[np.ndarray, Terms]:
+        """y' and the terms it came from."""
+        L = self.layout
+        tm = self.terms(y, command, v_set)
+        V = float(y[L.speed])
+        course = float(y[2]) + float(y[L.steering])  # direction of v_A1
+        dy = [V * math.cos(course), V * math.sin(course)]
+        dy.extend(kt * V for kt in tm.chain.kapT)
+        dy.extend((tm.steering_rate, tm.acceleration, tm.governor_rate))
+        return np.array(dy), tm
+
+    def rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
+        """The Cauchy form y' = f(t, y, input) with the input held (t does not enter)."""
+        return self.derivative(y, command, v_set)[0]
+
+    # -- energy ----------------------------------------------------------------------------
+    def kinetic_energy(self, y, command: float = 0.0, v_set: float = 0.0) -> float:
+        """T = 1/2 M V^2, J."""
+        tm = self.terms(y, command, v_set)
+        V = float(y[self.layout.speed])
+        return 0.5 * tm.mass * V * V
+
+    def power_balance(self, y, command: float, v_set: float) -> tuple[float, float]:
+        """(F_A1 V - sum F_Bk s'_Bk, dT/dt) at this state; the two are equal (MODEL.md)."""
+        tm = self.terms(y, command, v_set)
+        V = float(y[self.layout.speed])
+        applied = tm.traction * V - sum(f * kb * V for f, kb in zip(tm.resistance, tm.chain.kapB))
+        dT_dt = tm.mass * V * tm.acceleration + tm.velocity_term * V  # d/dt(1/2 M V^2) = M V V' + 1/2 M' V^2
+        return applied, dT_dt

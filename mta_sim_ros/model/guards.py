@@ -1,0 +1,66 @@
+"""Where the model stops being valid (MODEL.md): detect it and say so instead of returning numbers.
+
+Checked after every step of a run: non-finite state, a hitch angle past its cart's mechanical
+limit, and psi_k past 90 deg (cart k's hitch point would move backwards along the cart's axis:
+the jackknife, where the no-slip model of the next carts breaks down).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .chain import chain
+from .geometry import hitch_angles
+
+JACKKNIFE_PSI = math.pi / 2
+
+
+class ModelValidityError(RuntimeError):
+    """The run left the model's domain of validity. ``time`` (s) and ``cart`` say where."""
+
+    def __init__(self, message: str, time: float, cart: str | None = None):
+        super().__init__(message)
+        self.time = time
+        self.cart = cart
+
+
+def jackknife_margin(model, y) -> tuple[float, int]:
+    """(smallest margin to either jackknife limit over the hitches, rad; index of that cart).
+
+    Margin of cart k (k >= 2) = min(max_hitch_angle_k - |phi_k|, pi/2 - |psi_k|). A single cart
+    has no hitch: (inf, -1)."""
+    n = model.layout.n
+    if n == 1:
+        return math.inf, -1
+    heading = [float(v) for v in y[model.layout.heading]]
+    psi1 = float(y[model.layout.steering])
+    ch = chain(model.geom, heading, psi1, 0.0, 0.0)
+    phis = hitch_angles(heading)
+    best, where = math.inf, -1
+    for k in range(1, n):
+        limit = model.train.carts[k].max_hitch_angle
+        margin = min(limit - abs(phis[k - 1]), JACKKNIFE_PSI - abs(ch.psi[k]))
+        if margin < best:
+            best, where = margin, k
+    return best, where
+
+
+def check_state(model, t: float, y) -> None:
+    """Raise ModelValidityError if y is not a state the model can continue from."""
+    y = np.asarray(y)
+    if not np.all(np.isfinite(y)):
+        bad = [i for i, v in enumerate(y) if not math.isfinite(v)]
+        raise ModelValidityError(f"non-finite state at t = {t:.4f} s: components {bad} of {model.layout.size}", t)
+    margin, k = jackknife_margin(model, y)
+    if margin <= 0.0:
+        carts = model.train.carts
+        heading = [float(v) for v in y[model.layout.heading]]
+        phi = hitch_angles(heading)[k - 1]
+        raise ModelValidityError(
+            f"jackknife at t = {t:.4f} s: hitch between '{carts[k - 1].name}' and '{carts[k].name}' "
+            f"at {math.degrees(phi):.1f} deg (limit {math.degrees(carts[k].max_hitch_angle):.1f} deg, "
+            f"and the hitch point of '{carts[k].name}' may not move against its axis)",
+            t,
+            carts[k].name,
+        )

@@ -1,0 +1,162 @@
+"""The validated description of a train and a scene: immutable data, no behaviour.
+
+A :class:`Train` is the mechanical scheme (a list of carts) plus the lists of force elements,
+exactly what the KiDiM method takes as input (MODEL.md). A :class:`Scene` says what happens to a
+train: start pose, steering and speed inputs, duration and integrator. Both are frozen: the
+changing state lives in a numpy array (see ``model/state.py``), as MuJoCo splits model from data.
+
+Symbols (MODEL.md):
+    length        l_k  distance from the front point A_k to the rear axle centre B_k, m (> 0)
+    hitch_offset  a_k  distance from B_k back to the next hitch A_{k+1}, m (< 0: in front of B_k)
+    com_offset    c_k  distance from B_k forward to the centre of mass C_k, m
+    mass          m_k  kg;  yaw_inertia  J_k  about C_k, kg m^2
+
+These classes are built by ``model/loader.py`` from YAML; that is where every rule is checked.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+GRAVITY = 9.80665  # m/s^2, standard gravity
+
+
+@dataclass(frozen=True)
+class Cart:
+    """One rigid body of the train. Cart 1 is the tractor; A_1 is its steered front axle centre."""
+
+    name: str
+    length: float  # l_k, m
+    hitch_offset: float  # a_k, m
+    com_offset: float  # c_k, m
+    mass: float  # m_k, kg
+    yaw_inertia: float  # J_k, kg m^2
+    # Largest |hitch angle| th_{k-1} - th_k the coupling in front of this cart allows, rad.
+    # Past it the run stops (jackknife). Unused for the tractor.
+    max_hitch_angle: float = math.radians(90.0)
+
+
+@dataclass(frozen=True)
+class Traction:
+    """Traction force F_A1 at the tractor's front point A_1, along v_A1 (MODEL.md, force laws).
+
+    law = "constant":          F_A1 = force.
+    law = "governor":          PI speed governor on V towards the set speed, saturated by
+                               max_force (adhesion) and max_power / |V|; back-calculation
+                               anti-windup with time constant ``windup_time``.
+    law = "prescribed_speed":  V follows the set speed with a first-order lag ``response_time``
+                               and acceleration limit ``max_accel``; F_A1 comes from inverse
+                               dynamics (the equation of motion solved for the force).
+    """
+
+    law: str
+    force: float = 0.0  # N, constant law
+    set_speed: float = 0.0  # m/s, default set-point (a scene's speed overrides it)
+    max_force: float = math.inf  # N
+    max_power: float = math.inf  # W
+    kp: float = 0.0  # N per m/s
+    ki: float = 0.0  # N per m (per m/s per s)
+    windup_time: float = 1.0  # s
+    response_time: float = 0.5  # s, prescribed_speed
+    max_accel: float = math.inf  # m/s^2, prescribed_speed
+
+
+@dataclass(frozen=True)
+class Rolling:
+    """Rolling resistance f m g at the rear axle B_k of one cart, against v_Bk."""
+
+    cart: str
+    coefficient: float  # f, dimensionless
+
+
+@dataclass(frozen=True)
+class Draft:
+    """Implement draft at B_k of one cart, ASABE D497: D = F_i (A + B S + C S^2) W T.
+
+    S is the forward speed in km/h, W the width (m, or number of rows/tools), T the depth in cm
+    (1 for seeding tools), F_i the dimensionless soil texture factor. A, B, C in N per unit width
+    per unit depth (per (km/h) and (km/h)^2 for B and C).
+    """
+
+    cart: str
+    A: float
+    B: float = 0.0
+    C: float = 0.0
+    soil_factor: float = 1.0
+    width: float = 1.0
+    depth: float = 1.0
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Steering actuator: psi_1' = clip((clip(cmd, +-max_angle) - psi_1) / time_constant, +-max_rate)."""
+
+    time_constant: float  # s
+    max_rate: float  # rad/s
+    max_angle: float  # rad
+
+
+@dataclass(frozen=True)
+class Train:
+    name: str
+    carts: tuple[Cart, ...]
+    traction: Traction
+    rolling: tuple[Rolling, ...] = ()
+    draft: tuple[Draft, ...] = ()
+    actuator: Actuator = Actuator(time_constant=0.2, max_rate=0.6, max_angle=math.radians(40.0))
+    gravity: float = GRAVITY
+    # Resistances are smoothed through V = 0 with tanh(v / smoothing_speed), m/s.
+    smoothing_speed: float = 0.05
+    source: str = ""  # the file it came from, for messages
+
+    @property
+    def n(self) -> int:
+        return len(self.carts)
+
+    def cart_index(self, name: str) -> int:
+        for i, cart in enumerate(self.carts):
+            if cart.name == name:
+                return i
+        raise KeyError(name)
+
+
+@dataclass(frozen=True)
+class Table:
+    """A piecewise-linear function of time, held constant outside [time[0], time[-1]]."""
+
+    time: tuple[float, ...]
+    value: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Initial:
+    x: float = 0.0  # m, A_1
+    y: float = 0.0  # m, A_1
+    heading: float = 0.0  # rad, tractor heading th_1
+    speed: float = 0.0  # m/s, V (signed speed of A_1)
+    steering: float = 0.0  # rad, psi_1
+    hitch_angles: tuple[float, ...] = ()  # rad, th_{k-1} - th_k for k = 2..n; empty = straight
+
+
+@dataclass(frozen=True)
+class Integrator:
+    method: str = "rk4"  # euler | heun | rk4 | RK45 | DOP853 | LSODA | Radau | BDF
+    step: float = 0.01  # s, fixed-step methods (the largest step for adaptive ones)
+    rtol: float = 1e-8  # adaptive methods
+    atol: float = 1e-10  # adaptive methods
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    train: Train
+    duration: float  # s
+    initial: Initial
+    steering: Table  # rad against s (named manoeuvres are expanded into a table when loaded)
+    speed: Optional[Table] = None  # m/s against s; None = the traction law's set_speed
+    integrator: Integrator = Integrator()
+    publish_rate: float = 50.0  # Hz: the command is sampled and outputs written at this rate
+    maneuver: str = ""  # name of the manoeuvre the steering table came from, if any
+    source: str = ""  # the file it came from
+    raw: dict = field(default_factory=dict, compare=False, hash=False)  # the YAML as read
