@@ -1,0 +1,54 @@
+"""Trains and scenes built in code for the physics tests (the shipped YAML files are tested in
+test_loader.py). Parameters are of the size of real machines; the tests do not depend on them
+beyond the closed forms they check."""
+from __future__ import annotations
+
+import math
+
+from mta_sim_ros.model.spec import (Actuator, Cart, Draft, Initial, Integrator, Rolling, Scene,
+                                    Table, Traction, Train)
+
+# (length l, hitch_offset a, com_offset c, mass m, yaw_inertia J) of realistic carts
+CARTS = [
+    (3.0, 1.5, 1.3, 16000.0, 45000.0),  # tractor
+    (5.0, 1.5, 2.0, 10000.0, 60000.0),  # air cart
+    (6.0, 0.0, 2.5, 8000.0, 110000.0),  # seeder
+    (4.0, -0.8, 1.0, 5000.0, 20000.0),  # trailer hitched in front of its axle
+    (3.5, 1.0, 0.5, 3000.0, 9000.0),  # wagon
+]
+
+GOVERNOR = Traction("governor", set_speed=3.0, max_force=125000.0, max_power=250000.0, kp=60000.0, ki=30000.0)
+
+
+def train(n: int = 3, traction: Traction = GOVERNOR, draft: bool = True, carts=None, name="test") -> Train:
+    specs = carts if carts is not None else CARTS[:n]
+    cs = tuple(Cart(f"cart{k + 1}", *spec) for k, spec in enumerate(specs))
+    return Train(
+        name=name,
+        carts=cs,
+        traction=traction,
+        rolling=tuple(Rolling(c.name, 0.08) for c in cs),
+        draft=(Draft(cs[-1].name, A=2500.0, B=40.0, C=2.0, width=12.0, depth=1.0),) if draft else (),
+        actuator=Actuator(time_constant=0.2, max_rate=0.6, max_angle=math.radians(40.0)),
+    )
+
+
+def prescribed(speed: float) -> Traction:
+    """Speed held at ``speed`` exactly when the run starts at it (V' = 0 while V = v_set)."""
+    return Traction("prescribed_speed", set_speed=speed, response_time=0.5)
+
+
+def scene(tr: Train, table=((0.0,), (0.0,)), duration=10.0, rate=10.0, method="rk4", step=0.01,
+          rtol=1e-8, atol=1e-10, **initial) -> Scene:
+    """A scene steered by ``table`` = (times, angles); ``initial`` fields as in spec.Initial."""
+    init = dict(speed=tr.traction.set_speed)
+    init.update(initial)
+    return Scene(
+        name="test",
+        train=tr,
+        duration=duration,
+        initial=Initial(**init),
+        steering=Table(tuple(table[0]), tuple(table[1])),
+        integrator=Integrator(method=method, step=step, rtol=rtol, atol=atol),
+        publish_rate=rate,
+    )
