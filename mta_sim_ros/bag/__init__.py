@@ -1,0 +1,43 @@
+"""MCAP logging layer of mta_sim_ros (rosbag2 Jazzy compatible, no rclpy needed).
+
+* :mod:`.schemas`: ``message_definition()``, the ros2msg schema text rosbag2 stores.
+* :mod:`.writer`: :class:`BagWriter` and plain-dict message builders.
+* :mod:`.reader`: ``read_messages()``, ``read_metadata()``, ``summary()`` and
+  ``recover()`` for files cut short by a killed writer.
+"""
+
+from .reader import read_messages, read_metadata, recover, summary
+from .schemas import BagError, MessageDefinitionNotFound, message_definition, schema_name
+from .writer import (
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_QOS_YAML,
+    BagWriter,
+    clock,
+    float64,
+    header,
+    joint_state,
+    pose_array,
+    qos_profiles_yaml,
+    stamp,
+)
+
+__all__ = [
+    "BagError",
+    "BagWriter",
+    "DEFAULT_CHUNK_SIZE",
+    "DEFAULT_QOS_YAML",
+    "MessageDefinitionNotFound",
+    "clock",
+    "float64",
+    "header",
+    "joint_state",
+    "message_definition",
+    "pose_array",
+    "qos_profiles_yaml",
+    "read_messages",
+    "read_metadata",
+    "recover",
+    "schema_name",
+    "stamp",
+    "summary",
+]

@@ -1,0 +1,241 @@
+"""Reading MCAP bags written by :class:`~mta_sim_ros.bag.writer.BagWriter`, and crash recovery.
+
+Pure Python (``mcap`` + ``mcap_ros2``), no rclpy.  ``read_messages``,
+``read_metadata`` and ``summary`` need a complete file (with summary and
+footer); a file left behind by a killed writer must go through
+:func:`recover` first.
+"""
+
+import os
+import struct
+from collections import Counter
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any, BinaryIO, Iterable, Iterator
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, DataEnd, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap_ros2.decoder import DecoderFactory
+
+from .schemas import BagError
+from .writer import DEFAULT_CHUNK_SIZE, BagWriter
+
+PathLike = str | os.PathLike
+
+
+@contextmanager
+def _mcap_reader(path: PathLike, decode: bool = False):
+    """Open ``path`` with mcap's seeking reader; errors become BagError naming the file."""
+    path = str(path)
+    try:
+        f = open(path, "rb")
+    except OSError as exc:
+        raise BagError(f"cannot open bag file {path}: {exc.strerror or exc}") from exc
+    with f:
+        try:
+            yield make_reader(f, decoder_factories=[DecoderFactory()] if decode else ())
+        except BagError:
+            raise
+        except Exception as exc:  # McapError, struct.error, ... on damaged files
+            raise BagError(f"cannot read bag file {path}: {exc!r}; if the writer was killed, "
+                           "rebuild the file with mta_sim_ros.bag.recover()") from exc
+
+
+def read_messages(path: PathLike,
+                  topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+    """Yield ``(topic, log_time_ns, message)`` in log-time order.
+
+    Messages are decoded with mcap_ros2 into attribute objects
+    (``msg.header.stamp.sec``, ``msg.poses[0].position.x``, ...).
+
+    Args:
+        path: MCAP file.
+        topics: only these topics (all when None).
+    """
+    with _mcap_reader(path, decode=True) as reader:
+        for _, channel, message, decoded in reader.iter_decoded_messages(topics=topics):
+            yield channel.topic, message.log_time, decoded
+
+
+def read_metadata(path: PathLike) -> dict[str, dict[str, str]]:
+    """All metadata records as ``{name: {key: value}}``."""
+    with _mcap_reader(path) as reader:
+        return {record.name: dict(record.metadata) for record in reader.iter_metadata()}
+
+
+def summary(path: PathLike) -> dict[str, dict[str, Any]]:
+    """Per topic: ``{"type": "pkg/msg/Name", "count": n_messages}`` from the summary section."""
+    with _mcap_reader(path) as reader:
+        info = reader.get_summary()
+        if info is None or info.statistics is None:
+            raise BagError(f"bag file {path} has no summary statistics")
+        result: dict[str, dict[str, Any]] = {}
+        for channel_id, channel in info.channels.items():
+            schema = info.schemas.get(channel.schema_id)
+            entry = result.setdefault(channel.topic, {"type": schema.name if schema else "",
+                                                      "count": 0})
+            entry["count"] += info.statistics.channel_message_counts.get(channel_id, 0)
+        return result
+
+
+# -- recovery ------------------------------------------------------------------
+
+class _TruncatedTail(Exception):
+    """The source file ends inside a record."""
+
+
+class _ExactReader:
+    """Read-only file wrapper whose reads return exactly the bytes asked for.
+
+    mcap's StreamReader trusts short reads; with this wrapper a record cut by
+    the end of the file raises ``_TruncatedTail`` instead of being parsed from
+    partial data.  ``offset`` is the number of bytes consumed so far.
+    """
+
+    def __init__(self, f: BinaryIO):
+        self._f = f
+        self.offset = 0
+
+    def read(self, size: int) -> bytes:
+        data = self._f.read(size)
+        if len(data) < size:
+            raise _TruncatedTail()
+        self.offset += size
+        return data
+
+
+@dataclass
+class _Copier:
+    """Copies the data records of a source file into a BagWriter."""
+
+    out: BagWriter
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    topics: dict[int, str] = field(default_factory=dict)
+    messages: Counter = field(default_factory=Counter)
+    messages_dropped: int = 0
+    chunks: int = 0
+    chunks_dropped: int = 0
+
+    def copy(self, record: Any) -> None:
+        """Copy one top-level record (chunks are unpacked)."""
+        if isinstance(record, Chunk):
+            self._copy_chunk(record)
+        elif isinstance(record, Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            self._copy_channel(record)
+        elif isinstance(record, Message):
+            self._copy_message(record)
+        elif isinstance(record, Metadata):
+            self.out.add_metadata(record.name, record.metadata)
+        # Other records (indexes, statistics, attachments) are not copied;
+        # BagWriter rebuilds the indexes and statistics.
+
+    def _copy_chunk(self, chunk: Chunk) -> None:
+        try:
+            records = breakup_chunk(chunk, validate_crc=True)
+        except Exception:  # bad CRC or undecompressable data: skip this chunk
+            self.chunks_dropped += 1
+            return
+        self.chunks += 1
+        for record in records:
+            self.copy(record)
+
+    def _copy_channel(self, channel: Channel) -> None:
+        schema = self.schemas.get(channel.schema_id)
+        if channel.schema_id != 0 and schema is None:
+            return  # schema lost: the channel's messages are counted as dropped
+        self.out.add_channel(channel.topic, schema.name if schema else "",
+                             schema.data if schema else b"", channel.metadata,
+                             schema.encoding if schema else "", channel.message_encoding)
+        self.topics[channel.id] = channel.topic
+
+    def _copy_message(self, message: Message) -> None:
+        topic = self.topics.get(message.channel_id)
+        if topic is None:
+            self.messages_dropped += 1
+            return
+        self.out.write_raw(topic, message.data, message.log_time, message.publish_time,
+                           message.sequence)
+        self.messages[topic] += 1
+
+
+def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) -> dict[str, Any]:
+    """Rebuild a complete, indexed MCAP file ``dst`` from a damaged or truncated ``src``.
+
+    ``src`` is read record by record from the start; a record cut by the end
+    of the file (e.g. a writer killed with SIGKILL mid-chunk) ends the scan.
+    The profile, schemas, channels (with their metadata), metadata records and
+    every message of every complete chunk (and every complete loose message)
+    are written to ``dst`` with :class:`BagWriter`, in the original order.
+    A chunk failing its CRC or decompression is skipped.  Attachments are not
+    copied.  ``src`` itself is never modified.
+
+    Returns:
+        ``{"messages": {topic: n}, "total_messages": n, "chunks": n_chunks_copied,
+        "chunks_dropped": n, "messages_dropped": n_without_channel,
+        "bytes_dropped": n_unparsed_tail_bytes, "complete": src_had_a_data_end_record}``
+
+    Raises:
+        BagError: ``src`` is unreadable or not an MCAP file, ``dst`` is not
+            writable, or ``src`` has one topic on channels of different types.
+    """
+    src, dst = str(src), str(dst)
+    if os.path.abspath(src) == os.path.abspath(dst):
+        raise BagError(f"recover: source and destination are the same file {src}")
+    try:
+        f = open(src, "rb")
+    except OSError as exc:
+        raise BagError(f"cannot open bag file {src}: {exc.strerror or exc}") from exc
+    with f:
+        size = os.fstat(f.fileno()).st_size
+        stream = _ExactReader(f)
+        records = StreamReader(stream, emit_chunks=True).records
+        profile = _read_profile(src, records)
+        with BagWriter(dst, chunk_size=chunk_size, profile=profile) as out:
+            copier = _Copier(out)
+            good_end, complete = _copy_records(records, stream, copier)
+    return {
+        "messages": dict(copier.messages),
+        "total_messages": sum(copier.messages.values()),
+        "chunks": copier.chunks,
+        "chunks_dropped": copier.chunks_dropped,
+        "messages_dropped": copier.messages_dropped,
+        "bytes_dropped": 0 if complete else size - good_end,
+        "complete": complete,
+    }
+
+
+def _read_profile(src: str, records: Iterator[Any]) -> str:
+    """Profile of the Header record that must open every MCAP file."""
+    try:
+        header = next(records)
+    except (_TruncatedTail, McapError, StopIteration) as exc:
+        raise BagError(f"cannot recover {src}: not an MCAP file or no complete header") from exc
+    if not isinstance(header, Header):
+        raise BagError(f"cannot recover {src}: first record is "
+                       f"{type(header).__name__}, not Header")
+    return header.profile
+
+
+def _copy_records(records: Iterator[Any], stream: _ExactReader,
+                  copier: _Copier) -> tuple[int, bool]:
+    """Copy records until DataEnd or the damaged tail.
+
+    Returns the offset just after the last complete record and whether the
+    DataEnd record (end of the data section) was reached.
+    """
+    good_end = stream.offset
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return good_end, False
+        except (_TruncatedTail, McapError, ValueError, struct.error):
+            return good_end, False  # the tail cannot be parsed: keep what was read so far
+        if isinstance(record, DataEnd):
+            return stream.offset, True
+        copier.copy(record)
+        good_end = stream.offset
