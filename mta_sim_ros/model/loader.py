@@ -1,0 +1,577 @@
+"""Read trains and scenes from YAML into the frozen dataclasses of ``spec.py``, checking every rule.
+
+Every fault raises :class:`SpecError` with one line of the form
+
+    FIELD: VALUE in LOCATION of FILE must be RULE
+
+e.g. ``mass: -3 in carts[1] of trains/x.yaml must be > 0``. LOCATION is a path into the
+document (``top level``, ``carts[1]`` with 0-based list indices, ``forces.traction``,
+``steering.params``), or a line for syntax faults; FILE is the path as given.
+
+Units are SI. Angles are in radians, or in degrees under the same key with ``_deg`` appended
+(``max_angle_deg: 40``); giving both forms is a fault. Numbers may be ints or floats
+(``1e-8`` is read as a float, unlike plain YAML 1.1) and must be finite.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import sys
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, NoReturn, Optional, Union
+
+import numpy as np
+import yaml
+
+from mta_sim_ros import maneuvers
+from mta_sim_ros.model import spec
+
+INTEGRATOR_METHODS = ("euler", "heun", "rk4", "RK45", "DOP853", "LSODA", "Radau", "BDF")
+TRACTION_LAWS = ("constant", "governor", "prescribed_speed")
+
+
+class SpecError(ValueError):
+    """A train or scene file breaks a rule; the message says which field, where and why."""
+
+
+# --------------------------------------------------------------------------- reading YAML
+
+
+class _Loader(yaml.SafeLoader):
+    """Safe YAML loader that rejects repeated keys and reads ``1e-8`` as a float."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                if key_node.value in seen:
+                    raise _RepeatedKey(key_node.value, key_node.start_mark)
+                seen.add(key_node.value)
+        return super().construct_mapping(node, deep)
+
+
+class _RepeatedKey(yaml.YAMLError):
+    def __init__(self, key: str, mark):
+        super().__init__(key)
+        self.key, self.mark = key, mark
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def _fail(field: str, value: str, where: str, source: str, rule: str) -> NoReturn:
+    raise SpecError(f"{field}: {value} in {where} of {source} must be {rule}")
+
+
+def _read(path: Union[str, os.PathLike]) -> tuple[dict, str]:
+    """The top-level mapping of a YAML file, and the path as given (for messages)."""
+    source = str(path)
+    try:
+        with open(path, encoding="utf-8") as stream:
+            data = yaml.load(stream, Loader=_Loader)
+    except FileNotFoundError:
+        _fail("file", "not found", "document", source, "an existing YAML file")
+    except (OSError, UnicodeDecodeError) as error:
+        _fail("file", f"unreadable ({error})", "document", source, "a readable UTF-8 YAML file")
+    except _RepeatedKey as error:
+        _fail(error.key, "given twice", _line(error.mark), source, "given once")
+    except yaml.MarkedYAMLError as error:
+        _fail("yaml", error.problem, _line(error.problem_mark), source, "valid YAML syntax")
+    except yaml.YAMLError as error:
+        _fail("yaml", str(error).replace("\n", " "), "document", source, "valid YAML syntax")
+    if data is None:
+        _fail("file", "empty", "document", source, "a YAML mapping of fields")
+    if not isinstance(data, dict):
+        _fail("file", f"a {type(data).__name__}", "document", source, "a YAML mapping of fields")
+    return data, source
+
+
+def _line(mark) -> str:
+    return f"line {mark.line + 1}, column {mark.column + 1}"
+
+
+# --------------------------------------------------------------------------- rules and fields
+
+
+@dataclass(frozen=True)
+class Rule:
+    """A condition on a number and the words that finish "must be ..."."""
+
+    text: str
+    test: Callable[[float], bool]
+
+
+ANY = Rule("finite", lambda x: True)
+POSITIVE = Rule("> 0", lambda x: x > 0)
+NON_NEGATIVE = Rule(">= 0", lambda x: x >= 0)
+
+_REQUIRED = object()  # default meaning "the field must be given"
+
+
+class _Missing:
+    """Stands for the value of a field that was not given, in messages."""
+
+    def __str__(self) -> str:
+        return "(missing)"
+
+
+def _show(value: Any) -> str:
+    """A value as it would read in the YAML, shortened to keep messages on one line."""
+    text = repr(value) if isinstance(value, str) else str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+class _Section:
+    """One YAML mapping being read: its fields are taken one by one, each checked.
+
+    ``fields`` are the allowed keys; each key in ``angles`` may instead be given in degrees
+    as KEY_deg (a number or list of numbers), converted to radians here.
+    """
+
+    def __init__(self, data: dict, path: str, source: str, fields: Optional[Iterable[str]], angles: Iterable[str] = ()):
+        self.path, self.source = path, source
+        self.where = path or "top level"
+        self.raw = data
+        self.angles = tuple(angles)
+        self.degrees: dict[str, Any] = {}  # key -> value as given in degrees
+        self.values = dict(data)
+        for key in self.angles:
+            self._convert_degrees(key)
+        if fields is not None:
+            self.check_fields(fields)
+
+    def check_fields(self, fields: Iterable[str]) -> None:
+        """Fault on the first key that is not one of ``fields`` (a typo, most likely)."""
+        allowed = tuple(fields)
+        for key, value in self.values.items():
+            if key not in allowed:
+                expected = ", ".join(f"{k}[_deg]" if k in self.angles else k for k in allowed)
+                self.fail(str(key), value, f"removed or renamed: unknown field; expected one of {expected}")
+
+    def _convert_degrees(self, key: str) -> None:
+        deg_key = key + "_deg"
+        if deg_key not in self.values:
+            return
+        value = self.values.pop(deg_key)
+        if key in self.values:
+            self.fail(deg_key, value, f"given alone: {key} (radians) is given too")
+        if _is_number(value):
+            self.values[key] = math.radians(value)
+        elif isinstance(value, list) and all(_is_number(v) for v in value):
+            self.values[key] = [math.radians(v) for v in value]
+        else:
+            self.fail(deg_key, value, "a number or a list of numbers (degrees)")
+        self.degrees[key] = value
+
+    def fail(self, key: str, value: Any, rule: str) -> NoReturn:
+        """Raise the SpecError for field ``key``, spelled and valued as the user wrote it."""
+        if key in self.degrees:
+            if _is_number(value):
+                rule += f" (given in degrees: {value:.6g} rad)"
+            key, value = key + "_deg", self.degrees[key]
+        _fail(key, _show(value), self.where, self.source, rule)
+
+    def fail_item(self, key: str, index: int, rule: str) -> NoReturn:
+        """Raise the SpecError for entry ``index`` of the list under ``key``, as the user wrote it."""
+        spelled, given = (key + "_deg", self.degrees[key]) if key in self.degrees else (key, self.values[key])
+        _fail(f"{spelled}[{index}]", _show(given[index]), self.where, self.source, rule)
+
+    def has(self, key: str) -> bool:
+        return key in self.values
+
+    def _absent(self, key: str, default: Any, kind: str) -> Any:
+        """The default of a field that is not given; a fault if it is required."""
+        if default is _REQUIRED:
+            self.fail(key, _Missing(), f"given: {kind}")
+        return default
+
+    def number(self, key: str, rule: Rule = ANY, default: Any = _REQUIRED) -> float:
+        """A finite number obeying ``rule``; ``default`` if absent (unless required)."""
+        if key not in self.values:
+            return self._absent(key, default, "a number" if rule is ANY else f"a number {rule.text}")
+        value = self.values[key]
+        if not _is_number(value):
+            self.fail(key, value, "a number")
+        if not math.isfinite(value):
+            self.fail(key, value, "a finite number")
+        if not rule.test(value):
+            self.fail(key, value, rule.text)
+        return float(value)
+
+    def numbers(self, key: str, rule: Rule = ANY, default: Any = _REQUIRED) -> tuple[float, ...]:
+        """A list of finite numbers, each obeying ``rule``."""
+        if key not in self.values:
+            return self._absent(key, default, "a list of numbers")
+        value = self.values[key]
+        if not isinstance(value, list):
+            self.fail(key, value, "a list of numbers")
+        for i, item in enumerate(value):
+            if not _is_number(item) or not math.isfinite(item) or not rule.test(item):
+                self.fail_item(key, i, "a finite number" if rule is ANY else f"a finite number {rule.text}")
+        return tuple(float(item) for item in value)
+
+    def text(self, key: str, default: Any = _REQUIRED) -> str:
+        """A non-empty string."""
+        if key not in self.values:
+            return self._absent(key, default, "a non-empty string")
+        value = self.values[key]
+        if not isinstance(value, str) or not value.strip():
+            self.fail(key, value, "a non-empty string")
+        return value
+
+    def choice(self, key: str, choices: Iterable[str], default: Any = _REQUIRED) -> str:
+        """One of ``choices``, matched case-insensitively and returned as spelled there."""
+        choices = tuple(choices)
+        value = self.values[key] if key in self.values else self._absent(key, default, f"one of {', '.join(choices)}")
+        by_lower = {c.lower(): c for c in choices}
+        if not isinstance(value, str) or value.lower() not in by_lower:
+            self.fail(key, value, f"one of {', '.join(choices)}")
+        return by_lower[value.lower()]
+
+    def section(self, key: str, fields: Optional[Iterable[str]], angles: Iterable[str] = (), required: bool = False):
+        """The mapping under ``key`` as a _Section (an empty one if absent and not required).
+
+        ``fields=None`` leaves the check of its keys to the caller (see check_fields).
+        """
+        value = self.values.get(key, _REQUIRED if required else {})
+        if value is _REQUIRED:
+            self._absent(key, _REQUIRED, "a mapping of fields")
+        if not isinstance(value, dict):
+            self.fail(key, value, "a mapping of fields")
+        return _Section(value, self._child(key), self.source, fields, angles)
+
+    def sections(self, key: str, fields: Iterable[str], angles: Iterable[str] = (), required: bool = False):
+        """The list of mappings under ``key`` as _Sections (empty if absent and not required)."""
+        value = self.values.get(key, _REQUIRED if required else [])
+        if value is _REQUIRED:
+            self._absent(key, _REQUIRED, "a non-empty list of mappings")
+        if not isinstance(value, list) or (required and not value):
+            self.fail(key, value, "a non-empty list of mappings" if required else "a list of mappings")
+        for i, item in enumerate(value):
+            if not isinstance(item, dict):
+                _fail(f"{key}[{i}]", _show(item), self.where, self.source, "a mapping of fields")
+        return [_Section(item, f"{self._child(key)}[{i}]", self.source, fields, angles) for i, item in enumerate(value)]
+
+    def _child(self, key: str) -> str:
+        return f"{self.path}.{key}" if self.path else key
+
+
+# --------------------------------------------------------------------------- trains
+
+CART_FIELDS = ("name", "length", "hitch_offset", "com_offset", "mass", "yaw_inertia", "max_hitch_angle")
+HITCH_ANGLE = Rule("in (0, pi]", lambda x: 0 < x <= math.pi)
+
+
+def _cart(s: _Section) -> spec.Cart:
+    """One cart: l_k > 0, a_k and c_k any finite, m_k > 0, J_k > 0 (MODEL.md, Geometry)."""
+    return spec.Cart(
+        name=s.text("name"),
+        length=s.number("length", POSITIVE),
+        hitch_offset=s.number("hitch_offset"),
+        com_offset=s.number("com_offset"),
+        mass=s.number("mass", POSITIVE),
+        yaw_inertia=s.number("yaw_inertia", POSITIVE),
+        max_hitch_angle=s.number("max_hitch_angle", HITCH_ANGLE, spec.Cart.max_hitch_angle),
+    )
+
+
+def _carts(top: _Section) -> tuple[spec.Cart, ...]:
+    carts: list[spec.Cart] = []
+    for s in top.sections("carts", CART_FIELDS, ("max_hitch_angle",), required=True):
+        cart = _cart(s)
+        for j, other in enumerate(carts):
+            if other.name == cart.name:
+                s.fail("name", cart.name, f"unique: carts[{j}] has it too")
+        carts.append(cart)
+    return tuple(carts)
+
+
+_TRACTION_FIELDS = {
+    "constant": ("law", "force"),
+    "governor": ("law", "set_speed", "max_force", "max_power", "kp", "ki", "windup_time"),
+    "prescribed_speed": ("law", "set_speed", "response_time", "max_accel"),
+}
+
+
+def _traction(forces: _Section) -> spec.Traction:
+    """Traction at A_1; the fields allowed and required depend on the law (spec.Traction)."""
+    s = forces.section("traction", None, required=True)
+    law = s.choice("law", TRACTION_LAWS)
+    s.check_fields(_TRACTION_FIELDS[law])
+    defaults = spec.Traction(law=law)
+    if law == "constant":
+        return spec.Traction(law=law, force=s.number("force"))
+    if law == "governor":
+        return spec.Traction(
+            law=law,
+            set_speed=s.number("set_speed"),
+            max_force=s.number("max_force", POSITIVE),
+            max_power=s.number("max_power", POSITIVE),
+            kp=s.number("kp", POSITIVE),
+            ki=s.number("ki", NON_NEGATIVE),
+            windup_time=s.number("windup_time", POSITIVE, defaults.windup_time),
+        )
+    return spec.Traction(
+        law=law,
+        set_speed=s.number("set_speed", ANY, defaults.set_speed),
+        response_time=s.number("response_time", POSITIVE),
+        max_accel=s.number("max_accel", POSITIVE, defaults.max_accel),
+    )
+
+
+def _cart_name(s: _Section, names: tuple[str, ...]) -> str:
+    """The ``cart`` field of a force element: the name of a cart of this train."""
+    name = s.text("cart")
+    if name not in names:
+        s.fail("cart", name, f"the name of a cart: one of {', '.join(names)}")
+    return name
+
+
+ROLLING_COEFFICIENT = Rule("in [0, 1)", lambda x: 0 <= x < 1)
+
+
+def _rolling(s: _Section, names: tuple[str, ...]) -> spec.Rolling:
+    """Rolling resistance f m_k g at B_k, 0 <= f < 1."""
+    return spec.Rolling(cart=_cart_name(s, names), coefficient=s.number("coefficient", ROLLING_COEFFICIENT))
+
+
+def _draft(s: _Section, names: tuple[str, ...]) -> spec.Draft:
+    """ASABE D497 draft F_i (A + B S + C S^2) W T at B_k: A, B, C >= 0; F_i, W, T > 0."""
+    return spec.Draft(
+        cart=_cart_name(s, names),
+        A=s.number("A", NON_NEGATIVE),
+        B=s.number("B", NON_NEGATIVE, 0.0),
+        C=s.number("C", NON_NEGATIVE, 0.0),
+        soil_factor=s.number("soil_factor", POSITIVE, 1.0),
+        width=s.number("width", POSITIVE, 1.0),
+        depth=s.number("depth", POSITIVE, 1.0),
+    )
+
+
+MAX_STEER = Rule("in (0, pi/2)", lambda x: 0 < x < math.pi / 2)
+
+
+def _actuator(top: _Section) -> spec.Actuator:
+    """Steering actuator: first-order lag with rate and angle limits (spec.Actuator)."""
+    if not top.has("steering_actuator"):
+        return spec.Train.actuator
+    s = top.section("steering_actuator", ("time_constant", "max_rate", "max_angle"), ("max_rate", "max_angle"))
+    return spec.Actuator(
+        time_constant=s.number("time_constant", POSITIVE),
+        max_rate=s.number("max_rate", POSITIVE),
+        max_angle=s.number("max_angle", MAX_STEER),
+    )
+
+
+TRAIN_FIELDS = ("name", "carts", "forces", "steering_actuator", "smoothing_speed", "gravity")
+
+
+def _train(data: dict, source: str) -> spec.Train:
+    top = _Section(data, "", source, TRAIN_FIELDS)
+    carts = _carts(top)
+    names = tuple(c.name for c in carts)
+    forces = top.section("forces", ("traction", "rolling", "draft"), required=True)
+    rolling_fields = ("cart", "coefficient")
+    draft_fields = ("cart", "A", "B", "C", "soil_factor", "width", "depth")
+    return spec.Train(
+        name=top.text("name", _stem(source)),
+        carts=carts,
+        traction=_traction(forces),
+        rolling=tuple(_rolling(s, names) for s in forces.sections("rolling", rolling_fields)),
+        draft=tuple(_draft(s, names) for s in forces.sections("draft", draft_fields)),
+        actuator=_actuator(top),
+        gravity=top.number("gravity", POSITIVE, spec.GRAVITY),
+        smoothing_speed=top.number("smoothing_speed", POSITIVE, spec.Train.smoothing_speed),
+        source=source,
+    )
+
+
+def _stem(source: str) -> str:
+    return os.path.splitext(os.path.basename(source))[0]
+
+
+def load_train(path: Union[str, os.PathLike]) -> spec.Train:
+    """Read and check a train file (layout: config/trains/default.yaml)."""
+    return _train(*_read(path))
+
+
+# --------------------------------------------------------------------------- scenes
+
+
+def _table(s: _Section, value_key: str, value_rule: Rule = ANY) -> spec.Table:
+    """A piecewise-linear table {time: [...], VALUE_KEY: [...]}: time strictly increasing."""
+    time = s.numbers("time")
+    value = s.numbers(value_key, value_rule)
+    if not time:
+        s.fail("time", s.values["time"], "a non-empty list of numbers")
+    if any(later <= earlier for earlier, later in zip(time, time[1:])):
+        s.fail("time", s.values["time"], "strictly increasing")
+    if len(value) != len(time):
+        s.fail(value_key, s.values[value_key], f"as long as time ({len(time)} entries)")
+    return spec.Table(time=time, value=value)
+
+
+def _speed(top: _Section) -> Optional[spec.Table]:
+    """The speed command: a number (held), a {table: {time, speed}}, or None (set_speed)."""
+    if not top.has("speed"):
+        return None
+    value = top.values["speed"]
+    if _is_number(value):
+        return spec.Table(time=(0.0,), value=(top.number("speed"),))
+    if not isinstance(value, dict):
+        top.fail("speed", value, "a number or {table: {time: [...], speed: [...]}}")
+    outer = top.section("speed", ("table",))
+    return _table(outer.section("table", ("time", "speed"), required=True), "speed")
+
+
+def _steering_limit(train: spec.Train) -> Rule:
+    """|psi_1| <= max_angle: what the steering actuator can reach."""
+    limit = train.actuator.max_angle
+    return Rule(f"within +-max_angle = {limit:.4g} rad of the steering actuator", lambda x: abs(x) <= limit)
+
+
+def _initial(top: _Section, train: spec.Train) -> spec.Initial:
+    """Start pose: A_1 position, heading th_1, speed V, steering psi_1, hitch angles."""
+    fields = ("x", "y", "heading", "speed", "steering", "hitch_angles")
+    s = top.section("initial", fields, ("heading", "steering", "hitch_angles"))
+    hitch_angles = s.numbers("hitch_angles", ANY, ())
+    if hitch_angles and len(hitch_angles) != train.n - 1:
+        s.fail("hitch_angles", s.values["hitch_angles"], f"a list of {train.n - 1} angles (one per hitch) or empty")
+    for i, (angle, cart) in enumerate(zip(hitch_angles, train.carts[1:])):
+        if abs(angle) >= cart.max_hitch_angle:
+            rule = f"smaller in size than max_hitch_angle {cart.max_hitch_angle:.4g} rad of {cart.name}"
+            s.fail_item("hitch_angles", i, rule)
+    return spec.Initial(
+        x=s.number("x", ANY, 0.0),
+        y=s.number("y", ANY, 0.0),
+        heading=s.number("heading", ANY, 0.0),
+        speed=s.number("speed", ANY, 0.0),
+        steering=s.number("steering", _steering_limit(train), 0.0),
+        hitch_angles=hitch_angles,
+    )
+
+
+def _integrator(top: _Section, publish_rate: float) -> spec.Integrator:
+    """Integrator method and tolerances; the step must fit in one publishing period."""
+    s = top.section("integrator", ("method", "step", "rtol", "atol"))
+    default = spec.Integrator()
+    period = 1.0 / publish_rate
+    step_rule = Rule(f"> 0 and <= 1/publish_rate = {period:.6g} s", lambda x: 0 < x <= period * (1 + 1e-12))
+    return spec.Integrator(
+        method=s.choice("method", INTEGRATOR_METHODS, default.method),
+        step=s.number("step", step_rule, default.step),
+        rtol=s.number("rtol", POSITIVE, default.rtol),
+        atol=s.number("atol", POSITIVE, default.atol),
+    )
+
+
+def _speed_at(speed: Optional[spec.Table], initial: spec.Initial, traction: spec.Traction) -> Callable[[float], float]:
+    """The speed command as a function of time, for manoeuvres that need a speed.
+
+    The scene's speed table if given; else the traction law's set_speed (the speed the
+    governor or prescribed-speed law drives to); for the constant-force law, the initial speed.
+    """
+    if speed is not None:
+        return lambda t: float(np.interp(t, speed.time, speed.value))
+    constant = initial.speed if traction.law == "constant" else traction.set_speed
+    return lambda t: constant
+
+
+def _steering(top: _Section, train: spec.Train, speed_at: Callable[[float], float]) -> tuple[spec.Table, str]:
+    """The steering command table and the manoeuvre's name ("" for a table)."""
+    s = top.section("steering", ("table", "maneuver", "params"), required=True)
+    if s.has("table") == s.has("maneuver"):
+        top.fail("steering", s.raw, "a mapping with exactly one of table, maneuver")
+    if s.has("table"):
+        if s.has("params"):
+            s.fail("params", s.values["params"], "given only with a maneuver")
+        return _table(s.section("table", ("time", "angle"), ("angle",)), "angle", _steering_limit(train)), ""
+    name = s.choice("maneuver", maneuvers.MANEUVERS)
+    maneuver = maneuvers.MANEUVERS[name]
+    p = s.section("params", maneuver.defaults, maneuver.angles)
+    params = {key: p.number(key) for key in p.values}
+    try:
+        table = maneuvers.expand(
+            name, params, speed_at=speed_at, wheelbase=train.carts[0].length, max_angle=train.actuator.max_angle
+        )
+    except maneuvers.ParamError as error:
+        from_scene = error.param in maneuvers.SCENE_PARAMS and not p.has(error.param)
+        value = p.values.get(error.param, error.value)
+        p.fail(error.param, value, error.rule + (" (taken from the scene; give it in params)" if from_scene else ""))
+    return table, name
+
+
+SCENE_FIELDS = ("name", "train", "duration", "initial", "steering", "speed", "integrator", "publish_rate")
+
+
+def _scene(data: dict, source: str) -> spec.Scene:
+    top = _Section(data, "", source, SCENE_FIELDS)
+    train = _scene_train(top)
+    initial = _initial(top, train)
+    speed = _speed(top)
+    publish_rate = top.number("publish_rate", POSITIVE, spec.Scene.publish_rate)
+    steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
+    return spec.Scene(
+        name=top.text("name", _stem(source)),
+        train=train,
+        duration=top.number("duration", POSITIVE),
+        initial=initial,
+        steering=steering,
+        speed=speed,
+        integrator=_integrator(top, publish_rate),
+        publish_rate=publish_rate,
+        maneuver=maneuver,
+        source=source,
+        raw=data,
+    )
+
+
+def _scene_train(top: _Section) -> spec.Train:
+    """The train named by ``train:``, a path relative to the scene file's folder."""
+    relative = top.text("train")
+    path = os.path.normpath(os.path.join(os.path.dirname(top.source), relative))
+    if not os.path.isfile(path):
+        top.fail("train", relative, f"a train file, relative to the scene's folder (not found: {path})")
+    return load_train(path)
+
+
+def load_scene(path: Union[str, os.PathLike]) -> spec.Scene:
+    """Read and check a scene file and the train file it names (layout: config/scenes/*.yaml)."""
+    return _scene(*_read(path))
+
+
+# --------------------------------------------------------------------------- any file
+
+
+def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
+    """A train or a scene, told apart by its keys (``carts`` or ``train``)."""
+    data, source = _read(path)
+    if "carts" in data:
+        return _train(data, source)
+    if "train" in data:
+        return _scene(data, source)
+    keys = ", ".join(str(k) for k in data)
+    _fail("file", f"keys {keys}", "top level", source, "a train (with carts) or a scene (with train)")
+
+
+def check_files(paths: Iterable[Union[str, os.PathLike]]) -> int:
+    """Check each file, print ``ok: PATH`` or ``error: MESSAGE``; exit code 0, or 2 on a fault."""
+    status = 0
+    for path in paths:
+        try:
+            load_file(path)
+        except SpecError as error:
+            print(f"error: {error}", file=sys.stderr)
+            status = 2
+        else:
+            print(f"ok: {path}")
+    return status
