@@ -54,7 +54,7 @@ setup(
         'numpy>=1.24',
         'scipy>=1.11',
         'pyyaml>=6.0',
-        'mcap>=1.1',
+        'mcap>=1.5',  # BagWriter.flush() needs mcap's Writer.flush(), new in 1.5
         'mcap-ros2-support>=0.5',
     ],
     extras_require={

@@ -1,0 +1,62 @@
+"""Running figures of a run, gathered sample by sample in constant memory."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+
+@dataclass
+class RunSummary:
+    cart_names: tuple[str, ...]
+    samples: int = 0
+    t_start: float = math.nan
+    t_end: float = math.nan
+    distance: float = 0.0  # m, path length of A_1
+    traction_energy: float = 0.0  # J, integral of F_A1 V dt
+    power_min: float = math.inf
+    power_max: float = -math.inf
+    max_hitch: list = field(default_factory=list)  # rad, largest |hitch angle| per joint
+    min_jackknife_margin: float = math.inf
+    _last: object = None
+
+    def add(self, out) -> None:
+        """Take one Outputs sample (trapezoidal integrals between samples)."""
+        if self._last is None:
+            self.t_start = out.t
+            self.max_hitch = [0.0] * len(out.hitch_angle)
+        else:
+            dt = out.t - self._last.t
+            self.distance += 0.5 * dt * (abs(out.speed) + abs(self._last.speed))
+            self.traction_energy += 0.5 * dt * (out.power + self._last.power)
+        self.samples += 1
+        self.t_end = out.t
+        self.power_min = min(self.power_min, out.power)
+        self.power_max = max(self.power_max, out.power)
+        self.max_hitch = [max(m, abs(a)) for m, a in zip(self.max_hitch, out.hitch_angle)]
+        self.min_jackknife_margin = min(self.min_jackknife_margin, out.jackknife_margin)
+        self._last = out
+
+    @property
+    def duration(self) -> float:
+        return self.t_end - self.t_start if self.samples else 0.0
+
+    @property
+    def power_mean(self) -> float:
+        return self.traction_energy / self.duration if self.duration > 0 else math.nan
+
+    def markdown(self, title: str, extra: dict[str, str] | None = None) -> str:
+        rows = [
+            ("simulated time", f"{self.duration:.2f} s ({self.samples} samples)"),
+            ("distance of A_1", f"{self.distance:.1f} m"),
+            ("traction power min / mean / max", f"{self.power_min / 1e3:.1f} / {self.power_mean / 1e3:.1f} / "
+                                                f"{self.power_max / 1e3:.1f} kW"),
+            ("traction energy", f"{self.traction_energy / 3.6e6:.3f} kWh"),
+        ]
+        for k, m in enumerate(self.max_hitch):
+            rows.append((f"largest hitch angle {self.cart_names[k]}-{self.cart_names[k + 1]}", f"{math.degrees(m):.2f} deg"))
+        if math.isfinite(self.min_jackknife_margin):
+            rows.append(("smallest jackknife margin", f"{math.degrees(self.min_jackknife_margin):.1f} deg"))
+        rows.extend((extra or {}).items())
+        lines = [f"# {title}", "", "| quantity | value |", "|---|---|"]
+        lines += [f"| {k} | {v} |" for k, v in rows]
+        return "\n".join(lines) + "\n"

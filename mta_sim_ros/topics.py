@@ -1,0 +1,57 @@
+"""The simulator's topics: names, types, and the messages (plain dicts) made from its outputs.
+
+One table serves the offline run and the node, so their bags hold the same topics. Names are
+relative in the node (``--ros-args -r __ns:=/unit1`` moves them) and stored fully qualified in a
+bag recorded in the root namespace, as rosbag2 does.
+
+| topic              | type                        | content                                          |
+|--------------------|-----------------------------|--------------------------------------------------|
+| hitch_poses        | geometry_msgs/msg/PoseArray | A_k of every cart, oriented along th_k (m, rad)  |
+| cart_velocities    | sensor_msgs/msg/JointState  | name = cart, velocity = s'_Ck (m/s),             |
+|                    |                             | position = heading th_k (rad)                    |
+| traction_power     | std_msgs/msg/Float64        | N = F_A1 V (W)                                   |
+| steering_angle     | std_msgs/msg/Float64        | steering command held over the tick (rad)        |
+| applied_steering   | std_msgs/msg/Float64        | psi_1, the angle the actuator has reached (rad)  |
+| speed_setpoint     | std_msgs/msg/Float64        | speed set-point held over the tick (m/s)         |
+| /clock             | rosgraph_msgs/msg/Clock     | simulation time                                  |
+"""
+from __future__ import annotations
+
+from .bag import clock, float64, joint_state, pose_array
+
+TOPICS = {
+    "hitch_poses": "geometry_msgs/msg/PoseArray",
+    "cart_velocities": "sensor_msgs/msg/JointState",
+    "traction_power": "std_msgs/msg/Float64",
+    "steering_angle": "std_msgs/msg/Float64",
+    "applied_steering": "std_msgs/msg/Float64",
+    "speed_setpoint": "std_msgs/msg/Float64",
+    "/clock": "rosgraph_msgs/msg/Clock",
+}
+
+# The inputs of the simulator (the node subscribes to these; the others it publishes).
+COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
+
+
+def qualified(topic: str, namespace: str = "/") -> str:
+    """Fully qualified name of a relative topic in ``namespace``."""
+    if topic.startswith("/"):
+        return topic
+    return namespace.rstrip("/") + "/" + topic
+
+
+def output_messages(out, cart_names, frame_id: str = "map") -> dict[str, dict]:
+    """The published messages (plain dicts, topic -> message) for one Outputs sample."""
+    t = out.t
+    return {
+        "hitch_poses": pose_array(t, frame_id, [(p[0], p[1], th) for p, th in zip(out.front, out.heading)]),
+        "cart_velocities": joint_state(t, cart_names, out.heading, out.com_speed),
+        "traction_power": float64(out.power),
+        "applied_steering": float64(out.steering),
+        "/clock": clock(t),
+    }
+
+
+def command_messages(out) -> dict[str, dict]:
+    """The inputs held over the tick that produced ``out``, as the node would receive them."""
+    return {"steering_angle": float64(out.command), "speed_setpoint": float64(out.speed_setpoint)}
