@@ -193,6 +193,7 @@ def test_steady_circle_that_cannot_exist_is_refused_and_the_run_jackknifes():
     sc = trains.scene(tr, table=((0.0, 1.0), (0.0, 0.45)), duration=120.0, rate=20.0)
     sim, err = run_scene(sc, on_output=seen.append)
     assert err is not None and "jackknife" in str(err) and err.cart in ("cart2", "cart3")
+    assert "no steady turn exists" in str(err) and "cart3" in str(err)
     assert 1.0 < err.time < 120.0
     assert seen[-1].t == pytest.approx(err.time - sim.tick) and all(np.isfinite(o.power) for o in seen)
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from .chain import chain
 from .geometry import hitch_angles
+from .steady import SteadyStateError, steady_circle
 
 JACKKNIFE_PSI = math.pi / 2
 
@@ -60,7 +61,19 @@ def check_state(model, t: float, y) -> None:
         raise ModelValidityError(
             f"jackknife at t = {t:.4f} s: hitch between '{carts[k - 1].name}' and '{carts[k].name}' "
             f"at {math.degrees(phi):.1f} deg (limit {math.degrees(carts[k].max_hitch_angle):.1f} deg, "
-            f"and the hitch point of '{carts[k].name}' may not move against its axis)",
+            f"and the hitch point of '{carts[k].name}' may not move against its axis)"
+            + steady_turn_note(model.train, float(y[model.layout.steering])),
             t,
             carts[k].name,
         )
+
+
+def steady_turn_note(train, steering: float) -> str:
+    """Why a held steering angle leads to a jackknife, when no steady circle exists for it."""
+    if steering == 0.0:
+        return ""
+    try:
+        steady_circle(train, steering)
+    except SteadyStateError as err:
+        return f"; no steady turn exists at this steering: {err}"
+    return ""
