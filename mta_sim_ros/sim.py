@@ -43,6 +43,7 @@ class Outputs:
     steering: float  # psi_1, rad
     command: float  # steering command held over the last tick, rad
     speed_setpoint: float  # m/s
+    resistance: np.ndarray  # F_Bk, n, N (> 0 opposes forward motion of B_k)
     traction: float  # F_A1, N
     power: float  # N = F_A1 V, W
     resistance_power: float  # sum F_Bk s'_Bk, W
@@ -150,6 +151,7 @@ def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_se
         steering=float(y[L.steering]),
         command=command,
         speed_setpoint=v_set,
+        resistance=np.array(tm.resistance),
         traction=tm.traction,
         power=tm.traction * V,
         resistance_power=resistance_power,

@@ -8,7 +8,8 @@ bag recorded in the root namespace, as rosbag2 does.
 |--------------------|-----------------------------|--------------------------------------------------|
 | hitch_poses        | geometry_msgs/msg/PoseArray | A_k of every cart, oriented along th_k (m, rad)  |
 | cart_velocities    | sensor_msgs/msg/JointState  | name = cart, velocity = s'_Ck (m/s),             |
-|                    |                             | position = heading th_k (rad)                    |
+|                    |                             | position = heading th_k (rad),                   |
+|                    |                             | effort = resistance F_Bk at the axle (N)         |
 | traction_power     | std_msgs/msg/Float64        | N = F_A1 V (W)                                   |
 | steering_angle     | std_msgs/msg/Float64        | steering command held over the tick (rad)        |
 | applied_steering   | std_msgs/msg/Float64        | psi_1, the angle the actuator has reached (rad)  |
@@ -45,7 +46,7 @@ def output_messages(out, cart_names, frame_id: str = "map") -> dict[str, dict]:
     t = out.t
     return {
         "hitch_poses": pose_array(t, frame_id, [(p[0], p[1], th) for p, th in zip(out.front, out.heading)]),
-        "cart_velocities": joint_state(t, cart_names, out.heading, out.com_speed),
+        "cart_velocities": joint_state(t, cart_names, out.heading, out.com_speed, efforts=out.resistance),
         "traction_power": float64(out.power),
         "applied_steering": float64(out.steering),
         "/clock": clock(t),

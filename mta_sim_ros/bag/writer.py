@@ -378,20 +378,21 @@ def pose_array(t_seconds: float, frame_id: str,
 
 
 def joint_state(t_seconds: float, names: Sequence[str], positions: Sequence[float],
-                velocities: Sequence[float], frame_id: str = "") -> dict[str, Any]:
-    """sensor_msgs/JointState with positions and velocities (effort left empty).
+                velocities: Sequence[float], frame_id: str = "",
+                efforts: Sequence[float] = ()) -> dict[str, Any]:
+    """sensor_msgs/JointState with positions, velocities and (optionally) efforts.
 
     Raises:
-        ValueError: the three sequences differ in length.
+        ValueError: the sequences differ in length.
     """
-    if not len(names) == len(positions) == len(velocities):
+    if not len(names) == len(positions) == len(velocities) or len(efforts) not in (0, len(names)):
         raise ValueError(f"joint_state: {len(names)} names, {len(positions)} positions, "
-                         f"{len(velocities)} velocities")
+                         f"{len(velocities)} velocities, {len(efforts)} efforts")
     return {"header": header(t_seconds, frame_id),
             "name": [str(n) for n in names],
             "position": [float(p) for p in positions],
             "velocity": [float(v) for v in velocities],
-            "effort": []}
+            "effort": [float(e) for e in efforts]}
 
 
 def clock(t_seconds: float) -> dict[str, Any]:
