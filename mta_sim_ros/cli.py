@@ -11,6 +11,31 @@ def check_main(args: argparse.Namespace) -> int:
     return check_files(args.files)
 
 
+def recover_main(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .bag import BagError, recover
+
+    out = args.output or str(Path(args.bag).with_suffix(".recovered.mcap"))
+    try:
+        report = recover(args.bag, out)
+    except (BagError, OSError) as err:
+        print(f"mta recover: {err}", file=sys.stderr)
+        return 1
+    print(f"{out}: {report['total_messages']} messages in {report['chunks']} chunks recovered; "
+          f"dropped {report['chunks_dropped']} chunks, {report['messages_dropped']} messages, "
+          f"{report['bytes_dropped']} bytes")
+    return 0
+
+
+def node_main(args: argparse.Namespace) -> int:
+    from .node import main, resolve_config_path
+
+    params = resolve_config_path(args.params_file or "sim.yaml")
+    extra = [a for a in args.ros_args if a != "--ros-args"]
+    return main(["mta_node", "--ros-args", "--params-file", params, *extra])
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .tools import run
 
@@ -21,6 +46,17 @@ def build_parser() -> argparse.ArgumentParser:
                        description=run.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_arguments(p)
     p.set_defaults(func=run.main)
+
+    p = sub.add_parser("node", help="the ROS 2 simulator node (as `ros2 run mta_sim_ros sim_node`)",
+                       description="Runs the simulator node until SIGINT/SIGTERM. Parameters: config/sim.yaml.")
+    p.add_argument("--params-file", help="ROS parameters YAML (default: config/sim.yaml)")
+    p.add_argument("ros_args", nargs=argparse.REMAINDER, help="further ROS arguments (after --ros-args)")
+    p.set_defaults(func=node_main)
+
+    p = sub.add_parser("recover", help="rebuild a readable bag from one cut short (SIGKILL, power loss)")
+    p.add_argument("bag", help="the damaged .mcap")
+    p.add_argument("-o", "--output", help="where to write (default: <bag>.recovered.mcap)")
+    p.set_defaults(func=recover_main)
 
     p = sub.add_parser("check", help="validate train and scene files without running them")
     p.add_argument("files", nargs="+", help="YAML files (config/trains/*.yaml, config/scenes/*.yaml)")

@@ -1,0 +1,426 @@
+"""The ROS 2 node: real-time simulation of a train, steered over topics, every run logged to MCAP.
+
+A thin bridge around :class:`sim.Simulation`. A steady-clock timer fires every tick / rtf
+seconds (rtf = real_time_factor; 0 = as fast as possible); each firing advances the model by one
+tick of simulated time holding the latest commands (zero-order hold), publishes the outputs
+stamped with simulation time, and records them. A slow tick makes the simulation fall behind the
+wall clock (reported in /diagnostics), it never skips physics.
+
+Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock and
+/diagnostics, which are global by convention):
+    subscribes  steering_angle, speed_setpoint            std_msgs/Float64 (rad, m/s)
+    publishes   hitch_poses, cart_velocities, traction_power, applied_steering (see topics.py),
+                markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz)
+    services    reset (std_srvs/Trigger), pause (std_srvs/SetBool)
+QoS: one profile for everything, ``QOS``: reliable, volatile, keep last 10.
+"""
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Float64
+from std_srvs.srv import SetBool, Trigger
+
+from . import __version__, ros_msgs
+from .integrate import METHODS, IntegrationError
+from .model.guards import ModelValidityError
+from .model.loader import SpecError, load_scene
+from .recorder import RunRecorder
+from .sim import Simulation
+from .timing import TickStats
+from .topics import TOPICS, qualified
+
+QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                 durability=DurabilityPolicy.VOLATILE)
+
+
+
+def config_dir() -> Path:
+    """The package's config folder: share/mta_sim_ros/config when installed by colcon, else the
+    source tree's config/ (pip install -e, or running from a checkout)."""
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+        share = Path(get_package_share_directory("mta_sim_ros")) / "config"
+        if share.is_dir():
+            return share
+    except (ImportError, PackageNotFoundError, ValueError):
+        pass
+    return Path(__file__).resolve().parent.parent / "config"
+
+
+def resolve_config_path(path: str) -> str:
+    """A relative path as given if it exists from the working directory, else inside config_dir()
+    (so 'scenes/headland_turn.yaml' works from anywhere)."""
+    p = Path(path)
+    if p.is_absolute() or p.exists():
+        return str(p)
+    for base in (config_dir(), config_dir().parent):
+        if (base / p).exists():
+            return str(base / p)
+    return str(p)
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    default: object
+    description: str
+    live: bool  # may change while running
+    low: float | None = None
+    high: float | None = None
+    choices: tuple = ()
+
+
+PARAMS = (
+    Param("scene_file", "scenes/headland_turn.yaml",
+          "scene YAML: the train, its start pose and the integrator (its steering table is not used: "
+          "the node is steered over steering_angle)", live=False),
+    Param("integrator_method", "", f"integrator, '' = the scene's; one of {', '.join(METHODS)}", live=False,
+          choices=("",) + METHODS),
+    Param("integrator_step", 0.0, "integrator step, s; 0 = the scene's", live=False, low=0.0, high=1.0),
+    Param("publish_rate", 100.0, "ticks (and publications) per second of simulated time, Hz", live=False,
+          low=1.0, high=1000.0),
+    Param("real_time_factor", 1.0, "simulated seconds per wall second; 0 = as fast as possible", live=True,
+          low=0.0, high=1000.0),
+    Param("watchdog_timeout", 1.0, "a steering command older than this (wall s) is stale; 0 = never", live=True,
+          low=0.0, high=3600.0),
+    Param("watchdog_action", "hold", "on a stale command: 'hold' the last one or steer 'straight'", live=True,
+          choices=("hold", "straight")),
+    Param("frame_id", "map", "frame of hitch_poses and markers", live=True),
+    Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
+    Param("record", True, "write every run to an MCAP bag", live=False),
+    Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),
+)
+
+
+class ConfigError(ValueError):
+    """Invalid node configuration: one clear message, the node does not start."""
+
+
+def descriptor(p: Param) -> ParameterDescriptor:
+    d = ParameterDescriptor(description=p.description + ("" if p.live else " (fixed while running)"),
+                            read_only=False)
+    if p.low is not None:
+        if isinstance(p.default, float):
+            d.floating_point_range = [FloatingPointRange(from_value=p.low, to_value=p.high, step=0.0)]
+        else:
+            d.integer_range = [IntegerRange(from_value=int(p.low), to_value=int(p.high), step=0)]
+    return d
+
+
+class CommandInput:
+    """The latest command on one topic, with its wall-clock receipt time and what was wrong."""
+
+    def __init__(self, value: float, low: float, high: float, name: str):
+        self.value, self.low, self.high, self.name = value, low, high, name
+        self.received = time.monotonic()
+        self.count = 0
+        self.rejected = 0
+        self.clamped = 0
+        self.last_problem = ""
+
+    def take(self, x: float) -> float | None:
+        """Validate a received value; returns the value held from now on, or None if rejected."""
+        self.count += 1
+        if not math.isfinite(x):
+            self.rejected += 1
+            self.last_problem = f"{self.name}: {x} is not finite; kept {self.value:.4g}"
+            return None
+        if not self.low <= x <= self.high:
+            self.clamped += 1
+            self.last_problem = f"{self.name}: {x:.4g} outside [{self.low:.4g}, {self.high:.4g}]; clamped"
+            x = min(max(x, self.low), self.high)
+        self.value = x
+        self.received = time.monotonic()
+        return x
+
+    def age(self) -> float:
+        return time.monotonic() - self.received
+
+
+class SimNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("mta_sim", **kwargs)
+        for p in PARAMS:
+            try:
+                self.declare_parameter(p.name, p.default, descriptor(p))
+            except Exception as err:  # rclpy raises several types for a bad override
+                raise ConfigError(f"parameter {p.name}: {err}") from None
+        self.cfg = {p.name: self.get_parameter(p.name).value for p in PARAMS}
+        check_config(self.cfg)
+        try:
+            self.scene = load_scene(resolve_config_path(self.cfg["scene_file"]))
+        except SpecError as err:
+            raise ConfigError(f"parameter scene_file: {err}") from None
+        self.sim = Simulation(self.scene, method=self.cfg["integrator_method"] or None,
+                              step=self.cfg["integrator_step"] or None, rate=self.cfg["publish_rate"])
+        self.cart_names = [c.name for c in self.scene.train.carts]
+        max_angle = self.scene.train.actuator.max_angle
+        self.steering = CommandInput(self.scene.initial.steering, -max_angle, max_angle, "steering_angle")
+        self.speed = CommandInput(self.sim.v_set, -50.0, 50.0, "speed_setpoint")
+
+        self.clock_offset = 0.0  # published time = offset + run time; keeps /clock monotonic over resets
+        self.paused = False
+        self.halted = ""  # why the model stopped (jackknife...): the node stays up until a reset
+        self.stats = TickStats()
+        self.ticks_since_markers = 0
+        self.marker_every = max(1, round(self.cfg["publish_rate"] / self.cfg["marker_rate"]))
+        self.wall_start = time.monotonic()
+        self.sim_at_wall_start = 0.0
+
+        self.pubs = {topic: self.create_publisher(ros_msgs.message_class(type_name), topic, QOS)
+                     for topic, type_name in TOPICS.items() if topic not in ("steering_angle", "speed_setpoint")}
+        self.pubs["markers"] = self.create_publisher(ros_msgs.message_class(MARKERS_TYPE), "markers", QOS)
+        self.pubs["/diagnostics"] = self.create_publisher(ros_msgs.message_class(DIAGNOSTICS_TYPE),
+                                                          "/diagnostics", QOS)
+        self.create_subscription(Float64, "steering_angle", self._on_steering, QOS)
+        self.create_subscription(Float64, "speed_setpoint", self._on_speed, QOS)
+        self.create_service(Trigger, "reset", self._on_reset)
+        self.create_service(SetBool, "pause", self._on_pause)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self.recorder = None
+        if self.cfg["record"]:
+            topics = {qualified(t, self.get_namespace()): ty for t, ty in TOPICS.items()}
+            topics[qualified("markers", self.get_namespace())] = MARKERS_TYPE
+            topics["/diagnostics"] = DIAGNOSTICS_TYPE
+            self.recorder = RunRecorder(self.cfg["bag_dir"], topics, self._run_metadata())
+            self._start_bag()
+
+        self.steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.timer = None
+        self._make_timer()
+        self.create_timer(1.0, self._publish_diagnostics, clock=self.steady)
+        self.get_logger().info(
+            f"scene '{self.scene.name}', {len(self.cart_names)} carts, {self.sim.method} step {self.sim.step:g} s, "
+            f"tick {self.sim.tick:g} s, real-time factor {self.cfg['real_time_factor']:g}")
+
+    # -- timing ----------------------------------------------------------------------------
+    @property
+    def now(self) -> float:
+        """Published simulation time, s."""
+        return self.clock_offset + self.sim.t
+
+    def _make_timer(self) -> None:
+        if self.timer is not None:
+            self.destroy_timer(self.timer)
+        rtf = self.cfg["real_time_factor"]
+        self.period = self.sim.tick / rtf if rtf > 0 else 0.0
+        self.timer = self.create_timer(self.period, self._on_tick, clock=self.steady)
+        self.wall_start, self.sim_at_wall_start = time.monotonic(), self.now
+
+    def _on_tick(self) -> None:
+        if self.paused or self.halted:
+            return
+        started = time.perf_counter()
+        command = self.steering.value
+        timeout = self.cfg["watchdog_timeout"]
+        if timeout > 0 and self.steering.age() > timeout and self.cfg["watchdog_action"] == "straight":
+            command = 0.0
+        try:
+            self.sim.advance(command, self.speed.value)
+        except (ModelValidityError, IntegrationError) as err:
+            self.halted = str(err)
+            self.get_logger().error(f"simulation halted (call reset to start again): {err}")
+            self._publish_diagnostics()
+            return
+        out = self.sim.outputs()
+        out.t = self.now
+        msgs = ros_msgs.output_messages(out, self.cart_names, self.cfg["frame_id"])
+        self.ticks_since_markers += 1
+        if self.ticks_since_markers >= self.marker_every:
+            self.ticks_since_markers = 0
+            msgs["markers"] = ros_msgs.train_markers(out, self.scene.train, self.cfg["frame_id"])
+        for topic, msg in msgs.items():
+            self.pubs[topic].publish(msg)
+            self._record(topic, msg)
+        self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
+
+    def _record(self, topic: str, msg) -> None:
+        if self.recorder is not None and self.recorder.recording:
+            self.recorder.write(qualified(topic, self.get_namespace()), serialize_message(msg), round(self.now * 1e9))
+            if self.recorder.error:
+                self.get_logger().error(self.recorder.error)
+
+    # -- commands --------------------------------------------------------------------------
+    def _on_steering(self, msg: Float64) -> None:
+        self._take(self.steering, msg, "steering_angle")
+
+    def _on_speed(self, msg: Float64) -> None:
+        self._take(self.speed, msg, "speed_setpoint")
+
+    def _take(self, inp: CommandInput, msg: Float64, topic: str) -> None:
+        self._record(topic, msg)  # every command as received, at the simulation time it arrived
+        if inp.take(msg.data) != msg.data:  # rejected (None) or clamped
+            self.get_logger().warning(inp.last_problem, throttle_duration_sec=1.0)
+
+    # -- services --------------------------------------------------------------------------
+    def _on_reset(self, request, response):
+        self.clock_offset = self.now
+        self.sim.reset()
+        self.steering.value = self.scene.initial.steering
+        self.speed.value = self.sim.v_set
+        self.halted = ""
+        self.wall_start, self.sim_at_wall_start = time.monotonic(), self.now
+        path = self._start_bag()
+        response.success = True
+        response.message = f"reset to the start of '{self.scene.name}' at t = {self.now:.3f} s" + (
+            f"; recording {path}" if path else "")
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_pause(self, request, response):
+        self.paused = bool(request.data)
+        self.wall_start, self.sim_at_wall_start = time.monotonic(), self.now
+        response.success = True
+        response.message = "paused" if self.paused else "running"
+        return response
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        by_name = {p.name: p for p in PARAMS}
+        for param in params:
+            spec = by_name.get(param.name)
+            if spec is None:
+                continue
+            if not spec.live and param.value != self.cfg[param.name]:
+                return SetParametersResult(successful=False,
+                                           reason=f"{param.name} cannot change while running: it is fixed at "
+                                                  f"start (restart the node with the new value)")
+            if spec.choices and param.value not in spec.choices:
+                return SetParametersResult(successful=False,
+                                           reason=f"{param.name}: {param.value!r} must be one of {spec.choices}")
+        for param in params:
+            if param.name in self.cfg:
+                self.cfg[param.name] = param.value
+                if param.name == "real_time_factor":
+                    self._make_timer()
+        return SetParametersResult(successful=True)
+
+    # -- run log and diagnostics -----------------------------------------------------------
+    def _run_metadata(self) -> dict[str, str]:
+        meta = {
+            "package_version": __version__,
+            "scene_file": self.scene.source,
+            "scene_yaml": Path(self.scene.source).read_text(),
+            "train_file": self.scene.train.source,
+            "train_yaml": Path(self.scene.train.source).read_text(),
+            "method": self.sim.method,
+            "step": str(self.sim.step),
+            "rate": str(1.0 / self.sim.tick),
+            "algorithm": "2",
+        }
+        meta.update({f"param.{k}": str(v) for k, v in self.cfg.items()})
+        return meta
+
+    def _start_bag(self) -> Path | None:
+        if self.recorder is None:
+            return None
+        self.recorder.metadata["clock_offset"] = repr(self.clock_offset)
+        path = self.recorder.start()
+        if path is None:
+            self.get_logger().error(self.recorder.error)
+        else:
+            self.get_logger().info(f"recording {path}")
+        return path
+
+    def _publish_diagnostics(self) -> None:
+        wall = time.monotonic() - self.wall_start
+        rtf = (self.now - self.sim_at_wall_start) / wall if wall > 0 else 0.0
+        margin = self.sim.outputs().jackknife_margin
+        values = {
+            "sim_time_s": self.now,
+            "real_time_factor": rtf,
+            "real_time_factor_target": self.cfg["real_time_factor"],
+            "tick_compute_p50_ms": self.stats.window_percentile(50) * 1e3,
+            "tick_compute_p99_ms": self.stats.window_percentile(99) * 1e3,
+            "tick_compute_max_ms": self.stats.window_max * 1e3,
+            "deadline_misses": self.stats.deadline_misses,
+            "tick_period_ms": self.period * 1e3,
+            "steering_command_age_s": self.steering.age(),
+            "steering_commands": self.steering.count,
+            "steering_rejected": self.steering.rejected,
+            "steering_clamped": self.steering.clamped,
+            "jackknife_margin_deg": math.degrees(margin),
+            "paused": self.paused,
+            "bag": str(self.recorder.path) if self.recorder and self.recorder.recording else "",
+        }
+        problems = [p for p in (self.halted, self.recorder.error if self.recorder else "",
+                                self.steering.last_problem, self.speed.last_problem) if p]
+        stale = self.cfg["watchdog_timeout"] > 0 and self.steering.age() > self.cfg["watchdog_timeout"]
+        if stale:
+            problems.append(f"steering command stale ({self.steering.age():.1f} s): "
+                            f"{self.cfg['watchdog_action']}")
+        level = DiagnosticStatus.ERROR if self.halted else DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
+        msg = ros_msgs.diagnostic_array(self.now, f"{self.get_name()}: simulation", level,
+                                        "; ".join(problems) or "running", values)
+        self.pubs["/diagnostics"].publish(msg)
+        self._record("/diagnostics", msg)
+
+    def close(self) -> None:
+        """Finish the bag (normal exit, SIGINT, SIGTERM)."""
+        if self.recorder is not None:
+            self.recorder.close()
+
+
+MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
+DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+
+
+def check_config(cfg: dict) -> None:
+    for p in PARAMS:
+        v = cfg[p.name]
+        if p.choices and v not in p.choices:
+            raise ConfigError(f"parameter {p.name}: {v!r} must be one of {', '.join(map(repr, p.choices))}")
+        if p.low is not None and not p.low <= v <= p.high:
+            raise ConfigError(f"parameter {p.name}: {v} must be in [{p.low:g}, {p.high:g}]")
+    if cfg["integrator_step"] and cfg["integrator_step"] > 1.0 / cfg["publish_rate"]:
+        raise ConfigError(f"parameter integrator_step: {cfg['integrator_step']} must not exceed the tick "
+                          f"1 / publish_rate = {1.0 / cfg['publish_rate']:g} s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry of ``sim_node`` (ros2 run) and ``mta node``: ROS arguments as for any node.
+
+    SIGINT and SIGTERM end the spin loop between callbacks, then the bag is finished and the
+    context shut down in that order (rclpy's own handlers would invalidate the context while a
+    callback may still be writing)."""
+    rclpy.init(args=sys.argv if argv is None else argv, signal_handler_options=SignalHandlerOptions.NO)
+    stop = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: stop.append(signum))
+    try:
+        node = SimNode()
+    except ConfigError as err:
+        print(f"sim_node: {err}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,241 @@
+"""rclpy message objects from the simulator's outputs, for the ROS node.
+
+The node publishes these messages and records them with
+``BagWriter.write_raw(topic, rclpy.serialization.serialize_message(msg), ...)``. The offline run
+writes the plain dicts of :func:`mta_sim_ros.topics.output_messages` instead; both bags must hold
+the same values, so every builder here reuses the dict builders' formulas (``stamp``,
+``yaw_quaternion``) and ``test/test_ros_msgs.py`` compares the two CDR encodings field by field.
+
+Besides the topics of :data:`mta_sim_ros.topics.TOPICS` this module builds the node's extras:
+:func:`train_markers` (a ``visualization_msgs/MarkerArray`` drawing of the train for Foxglove or
+RViz) and :func:`diagnostic_array` (one ``diagnostic_msgs/DiagnosticStatus``).
+
+rclpy message packages only; nothing here creates a node or touches the middleware.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import numbers
+from typing import Mapping, Sequence
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Vector3
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import ColorRGBA, Float64, Header
+from visualization_msgs.msg import Marker, MarkerArray
+
+from .bag.schemas import split_type_name
+from .bag.writer import stamp, yaw_quaternion
+
+#: hardware_id of every DiagnosticStatus the simulator reports.
+HARDWARE_ID = "mta_sim_ros"
+
+#: Width of a cart's outline when nothing says otherwise (the tractor, a cart without draft), m.
+DEFAULT_WIDTH = 2.5
+
+# Marker namespaces, one per kind of marker; within each the id is the cart index (the single
+# sphere list of hitch points has id 0). Stable ids make every message replace the previous one.
+NS_OUTLINE = "outline"
+NS_AXLE = "axle"
+NS_HITCHES = "hitches"
+NS_LABEL = "label"
+
+LINE_WIDTH = 0.1  # m, outlines and axles
+HITCH_DIAMETER = 0.5  # m, hitch point spheres
+TEXT_HEIGHT = 1.0  # m, cart name labels
+
+# Cart colours (RGB), in train order, repeated for long trains. Multiples of 1/16, exact in the
+# message's float32 fields, so a received marker equals the one sent.
+_PALETTE = (
+    (0.125, 0.5, 0.75),  # blue
+    (1.0, 0.5, 0.0625),  # orange
+    (0.1875, 0.625, 0.1875),  # green
+    (0.875, 0.125, 0.125),  # red
+    (0.5625, 0.375, 0.75),  # purple
+    (0.5625, 0.3125, 0.25),  # brown
+)
+
+_DIAGNOSTIC_LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+
+
+def message_class(type_name: str) -> type:
+    """The rclpy message class of a type name of the topic table, e.g.
+    ``message_class(topics.TOPICS["hitch_poses"])`` is ``geometry_msgs.msg.PoseArray``.
+
+    Raises:
+        ValueError: malformed type name.
+        ImportError, AttributeError: the message package or type is not installed.
+    """
+    pkg, name = split_type_name(type_name)
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def time_msg(t_seconds: float) -> Time:
+    """builtin_interfaces/Time of ``t_seconds``, rounded to the nanosecond like
+    ``bag.writer.stamp``."""
+    return Time(**stamp(t_seconds))
+
+
+def header(t_seconds: float, frame_id: str) -> Header:
+    """std_msgs/Header with stamp ``t_seconds`` and ``frame_id``."""
+    return Header(stamp=time_msg(t_seconds), frame_id=frame_id)
+
+
+def float64(x: float) -> Float64:
+    """std_msgs/Float64."""
+    return Float64(data=float(x))
+
+
+def output_messages(out, cart_names: Sequence[str], frame_id: str = "map") -> dict[str, object]:
+    """The published messages (topic -> rclpy message) for one ``sim.Outputs`` sample: the
+    same topics and values as :func:`mta_sim_ros.topics.output_messages`."""
+    if len(cart_names) != len(out.heading):
+        raise ValueError(f"output_messages: {len(cart_names)} cart names for "
+                         f"{len(out.heading)} carts")
+    t = out.t
+    poses = [Pose(position=Point(x=float(p[0]), y=float(p[1]), z=0.0),
+                  orientation=Quaternion(**yaw_quaternion(float(th))))
+             for p, th in zip(out.front, out.heading)]
+    return {
+        "hitch_poses": PoseArray(header=header(t, frame_id), poses=poses),
+        "cart_velocities": JointState(header=header(t, ""),
+                                      name=[str(n) for n in cart_names],
+                                      position=[float(th) for th in out.heading],
+                                      velocity=[float(v) for v in out.com_speed],
+                                      effort=[float(f) for f in out.resistance]),
+        "traction_power": float64(out.power),
+        "applied_steering": float64(out.steering),
+        "/clock": Clock(clock=time_msg(t)),
+    }
+
+
+# -- markers -------------------------------------------------------------------
+
+
+def cart_widths(train) -> list[float]:
+    """Width of each cart's outline, m: DEFAULT_WIDTH for the tractor; for a towed cart the
+    widest ``Draft.width`` acting on it (the draft width is taken as metres), else
+    DEFAULT_WIDTH."""
+    widths = [DEFAULT_WIDTH]
+    for cart in train.carts[1:]:
+        drafts = [d.width for d in train.draft if d.cart == cart.name]
+        widths.append(max(drafts, default=DEFAULT_WIDTH))
+    return widths
+
+
+def _point(x: float, y: float) -> Point:
+    return Point(x=float(x), y=float(y), z=0.0)
+
+
+def _color(k: int) -> ColorRGBA:
+    r, g, b = _PALETTE[k % len(_PALETTE)]
+    return ColorRGBA(r=r, g=g, b=b, a=1.0)
+
+
+def _marker(t: float, frame_id: str, ns: str, marker_id: int, marker_type: int,
+            scale: Vector3, color: ColorRGBA) -> Marker:
+    """A Marker to ADD (replacing the one with the same ns and id) with identity pose."""
+    return Marker(header=header(t, frame_id), ns=ns, id=marker_id, type=marker_type,
+                  action=Marker.ADD, pose=Pose(), scale=scale, color=color)
+
+
+def train_markers(out, train, frame_id: str = "map") -> MarkerArray:
+    """A drawing of the train at ``out.t`` (z = 0), for Foxglove or RViz.
+
+    Per cart k (ns / id = k): ``outline``, a closed LINE_STRIP rectangle along the cart's axis
+    from A_k back to the rearmost of B_k and its rear hitch point (A_{k+1}, or ``out.rear_hitch``
+    for the last cart), as wide as :func:`cart_widths` says; ``axle``, a LINE_LIST segment
+    through B_k across the axis, as long as the cart is wide; ``label``, a TEXT_VIEW_FACING with
+    the cart's name at the outline's centre. Plus one SPHERE_LIST (ns ``hitches``, id 0) of the
+    points A_k, each in its cart's colour.
+    """
+    n = len(train.carts)
+    if len(out.front) != n:
+        raise ValueError(f"train_markers: {len(out.front)} carts in the outputs, {n} in train "
+                         f"{train.name!r}")
+    t = out.t
+    widths = cart_widths(train)
+    rear_points = list(out.front[1:]) + [out.rear_hitch]
+    markers = []
+    for k, cart in enumerate(train.carts):
+        ax, ay = (float(v) for v in out.front[k])
+        bx, by = (float(v) for v in out.axle[k])
+        rx, ry = (float(v) for v in rear_points[k])
+        ex, ey = math.cos(out.heading[k]), math.sin(out.heading[k])  # along the axis
+        nx, ny = -ey, ex  # to the cart's left
+        half = widths[k] / 2.0
+        # How far back of A_k the outline reaches (the rear hitch may be ahead of the axle).
+        back = max((ax - bx) * ex + (ay - by) * ey, (ax - rx) * ex + (ay - ry) * ey)
+        tx, ty = ax - back * ex, ay - back * ey  # centre of the outline's rear edge
+        color = _color(k)
+
+        outline = _marker(t, frame_id, NS_OUTLINE, k, Marker.LINE_STRIP,
+                          Vector3(x=LINE_WIDTH), color)
+        outline.points = [_point(ax + half * nx, ay + half * ny),
+                          _point(ax - half * nx, ay - half * ny),
+                          _point(tx - half * nx, ty - half * ny),
+                          _point(tx + half * nx, ty + half * ny),
+                          _point(ax + half * nx, ay + half * ny)]
+        axle = _marker(t, frame_id, NS_AXLE, k, Marker.LINE_LIST, Vector3(x=LINE_WIDTH), color)
+        axle.points = [_point(bx + half * nx, by + half * ny),
+                       _point(bx - half * nx, by - half * ny)]
+        label = _marker(t, frame_id, NS_LABEL, k, Marker.TEXT_VIEW_FACING,
+                        Vector3(z=TEXT_HEIGHT), color)
+        label.pose.position = _point((ax + tx) / 2.0, (ay + ty) / 2.0)
+        label.text = cart.name
+        markers += [outline, axle, label]
+
+    hitches = _marker(t, frame_id, NS_HITCHES, 0, Marker.SPHERE_LIST,
+                      Vector3(x=HITCH_DIAMETER, y=HITCH_DIAMETER, z=HITCH_DIAMETER), _color(0))
+    hitches.points = [_point(x, y) for x, y in out.front]
+    hitches.colors = [_color(k) for k in range(n)]
+    markers.append(hitches)
+    return MarkerArray(markers=markers)
+
+
+# -- diagnostics ---------------------------------------------------------------
+
+
+def _level_byte(level: int | bytes) -> bytes:
+    """DiagnosticStatus.level as rclpy (Jazzy) holds it: a ``bytes`` of length 1.
+
+    Accepts an int 0..3 or one of the ``DiagnosticStatus.OK/WARN/ERROR/STALE`` constants
+    (themselves bytes of length 1).
+    """
+    if isinstance(level, (bytes, bytearray)):
+        if len(level) != 1:
+            raise ValueError(f"diagnostic level must be 1 byte, got {level!r}")
+        value = level[0]
+    else:
+        value = int(level)
+    if value not in _DIAGNOSTIC_LEVELS:
+        raise ValueError(f"diagnostic level must be one of {_DIAGNOSTIC_LEVELS}, got {level!r}")
+    return bytes([value])
+
+
+def format_value(value: object) -> str:
+    """A diagnostic value as text: non-integral numbers with %.6g, everything else with str()."""
+    if isinstance(value, numbers.Real) and not isinstance(value, numbers.Integral):
+        return f"{float(value):.6g}"
+    return str(value)
+
+
+def diagnostic_array(t: float, name: str, level: int | bytes, message: str,
+                     values: Mapping[str, object]) -> DiagnosticArray:
+    """diagnostic_msgs/DiagnosticArray stamped ``t`` with one DiagnosticStatus (hardware_id
+    :data:`HARDWARE_ID`), its values as KeyValue strings (see :func:`format_value`).
+
+    Args:
+        level: 0 OK, 1 WARN, 2 ERROR, 3 STALE, as an int or a ``DiagnosticStatus`` constant.
+
+    Raises:
+        ValueError: unknown level.
+    """
+    status = DiagnosticStatus(level=_level_byte(level), name=name, message=message,
+                              hardware_id=HARDWARE_ID,
+                              values=[KeyValue(key=str(k), value=format_value(v))
+                                      for k, v in values.items()])
+    return DiagnosticArray(header=header(t, ""), status=[status])

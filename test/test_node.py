@@ -1,0 +1,271 @@
+"""The node as users meet it: a separate process on real DDS (loopback, own domain), steered by
+another process, observed by the test's own node, its bag read by rosbags."""
+from __future__ import annotations
+
+import math
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseArray
+from rosbags.highlevel import AnyReader
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
+from std_srvs.srv import SetBool, Trigger
+
+from mta_sim_ros.bag import DEFAULT_CHUNK_SIZE
+from mta_sim_ros.model.loader import load_scene
+from mta_sim_ros.sim import Simulation
+
+from dds import REPO, Probe, start_node, start_python, stop, write_params
+
+SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
+RATE = 50.0
+
+STEERER = """
+    import math, sys, time, rclpy
+    from std_msgs.msg import Float64
+    rclpy.init()
+    node = rclpy.create_node("steerer")
+    pub = node.create_publisher(Float64, "steering_angle", 10)
+    deadline = time.monotonic() + 30
+    while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    start = time.monotonic()
+    while (t := time.monotonic() - start) < 3.0:
+        pub.publish(Float64(data=0.2 * math.sin(1.5 * t)))
+        time.sleep(0.05)
+    node.destroy_node()
+    rclpy.shutdown()
+"""
+
+
+@pytest.fixture
+def probe():
+    p = Probe()
+    yield p
+    p.close()
+
+
+def params(tmp_path: Path, **overrides) -> Path:
+    values = dict(scene_file=str(SCENE), bag_dir=str(tmp_path / "bags"), publish_rate=RATE, real_time_factor=1.0,
+                  watchdog_timeout=0.0, record=True)
+    values.update(overrides)
+    return write_params(tmp_path / "params.yaml", **values)
+
+
+def read_bag(path: Path) -> dict[str, list]:
+    out: dict[str, list] = {}
+    with AnyReader([path]) as r:
+        for con, log_time, raw in r.messages():
+            out.setdefault(con.topic, []).append((log_time, r.deserialize(raw, con.msgtype)))
+    return out
+
+
+def bags_in(folder: Path) -> list[Path]:
+    return sorted(folder.glob("*.mcap"))
+
+
+def wait_for_output(probe: Probe, node, count=3, timeout=30.0) -> list:
+    box = probe.received.get("/hitch_poses") or probe.subscribe("/hitch_poses", PoseArray)
+    ok = probe.spin_until(lambda: len(box) >= count or node.poll() is not None, timeout)
+    assert ok and node.poll() is None, "the node did not start publishing"
+    return box
+
+
+def resimulate(bag: dict[str, list]) -> dict[int, object]:
+    """Offline run of the same command sequence: each tick holds the last steering command the
+    node had received at the tick's start (the bag stamps commands with the sim time they arrived)."""
+    sim = Simulation(load_scene(str(SCENE)), rate=RATE)
+    commands = [(t, m.data) for t, m in bag.get("/steering_angle", [])]
+    ends = [t for t, _ in bag["/hitch_poses"]]
+    outputs, i, command = {}, 0, sim.command
+    while round(sim.t * 1e9) < ends[-1]:
+        t_ns = round(sim.t * 1e9)
+        while i < len(commands) and commands[i][0] <= t_ns:
+            command = commands[i][1]
+            i += 1
+        sim.advance(command, sim.v_set)
+        outputs[round(sim.t * 1e9)] = sim.outputs()
+    return outputs
+
+
+def test_steered_over_dds_the_node_matches_the_offline_simulation(tmp_path, probe):
+    node = start_node(params(tmp_path), tmp_path / "node.log")
+    try:
+        poses = wait_for_output(probe, node)
+        power = probe.subscribe("/traction_power", Float64)
+        steerer = start_python(STEERER, tmp_path / "steerer.log")
+        probe.spin_until(lambda: steerer.poll() is not None, 60.0)  # receive while it steers
+        assert steerer.wait(timeout=5) == 0, (tmp_path / "steerer.log").read_text()
+        probe.spin_until(lambda: False, 0.5)  # let the last outputs arrive
+    finally:
+        assert stop(node) == 0, (tmp_path / "node.log").read_text()
+    [bag_path] = bags_in(tmp_path / "bags")
+    bag = read_bag(bag_path)
+    assert len(bag["/steering_angle"]) >= 40  # 20 Hz for 3 s
+    expected = resimulate(bag)
+    for log_time, msg in bag["/hitch_poses"]:
+        out = expected[log_time]
+        got = np.array([[p.position.x, p.position.y] for p in msg.poses])
+        np.testing.assert_allclose(got, out.front, rtol=0, atol=1e-9)
+    power_by_time = {t: m.data for t, m in bag["/traction_power"]}
+    for t, out in expected.items():
+        assert power_by_time[t] == pytest.approx(out.power, rel=1e-12)
+    # what the test received over DDS is what the bag holds
+    by_stamp = {t: m for t, m in bag["/hitch_poses"]}
+    assert len(poses) > 50 and len(power) > 50
+    for msg in poses:
+        stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert [p.position.x for p in msg.poses] == [p.position.x for p in by_stamp[stamp].poses]
+    clock = [m.clock.sec * 10**9 + m.clock.nanosec for _, m in bag["/clock"]]
+    assert clock[0] > 0 and all(b > a for a, b in zip(clock, clock[1:]))
+    turned = max(abs(m.data) for _, m in bag["/applied_steering"])
+    assert turned > 0.1  # the commands reached the model
+
+
+def test_pause_and_reset(tmp_path, probe):
+    node = start_node(params(tmp_path, real_time_factor=2.0), tmp_path / "node.log")
+    try:
+        poses = wait_for_output(probe, node)
+        clock = probe.subscribe("/clock", Clock)
+        assert probe.call(SetBool, "/pause", SetBool.Request(data=True)).success
+        probe.spin_until(lambda: False, 0.3)  # in-flight messages arrive
+        paused_at = len(poses)
+        probe.spin_until(lambda: False, 1.0)
+        assert len(poses) == paused_at  # a paused simulation publishes nothing
+        assert probe.call(SetBool, "/pause", SetBool.Request(data=False)).success
+        assert probe.spin_until(lambda: len(poses) > paused_at + 5, 10.0)
+
+        probe.spin_until(lambda: len(clock) > 3, 5.0)
+        before = clock[-1].clock.sec + clock[-1].clock.nanosec * 1e-9
+        reply = probe.call(Trigger, "/reset", Trigger.Request())
+        assert reply.success and "recording" in reply.message
+        n = len(poses)
+        assert probe.spin_until(lambda: len(poses) > n + 3, 10.0)
+        # back at the scene's start pose, while the clock went on
+        first_after = poses[n + 1]
+        ini = load_scene(str(SCENE)).initial
+        assert abs(first_after.poses[0].position.x - ini.x) < 3.0 * 0.1  # one tick at ~3 m/s from x0
+        after = clock[-1].clock.sec + clock[-1].clock.nanosec * 1e-9
+        assert after > before
+    finally:
+        assert stop(node) == 0
+    bags = bags_in(tmp_path / "bags")
+    assert len(bags) == 2  # a new bag for the new run
+    for b in bags:
+        assert len(read_bag(b)["/hitch_poses"]) > 0
+
+
+def test_sigterm_leaves_a_complete_bag(tmp_path, probe):
+    node = start_node(params(tmp_path), tmp_path / "node.log")
+    wait_for_output(probe, node, count=20)
+    assert stop(node, signal.SIGTERM) == 0
+    [bag] = bags_in(tmp_path / "bags")
+    data = read_bag(bag)  # needs the summary and footer: a finished file
+    assert len(data["/hitch_poses"]) >= 20
+
+
+def test_sigkill_then_recover_keeps_all_but_the_last_chunk(tmp_path, probe):
+    node = start_node(params(tmp_path, real_time_factor=4.0), tmp_path / "node.log")
+    poses = wait_for_output(probe, node, count=600, timeout=60)
+    last_seen = max(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in poses)
+    stop(node, signal.SIGKILL)
+    [bag] = bags_in(tmp_path / "bags")
+    with pytest.raises(Exception):
+        read_bag(bag)  # no footer: not readable as it is
+    fixed = tmp_path / "fixed.mcap"
+    done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "recover", str(bag), "-o", str(fixed)],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert done.returncode == 0, done.stderr
+    data = read_bag(fixed)
+    times = [t for t, _ in data["/hitch_poses"]]
+    assert times == sorted(times) and len(times) > 100
+    # what is lost is the chunk that was still in memory: bounded by the chunk size
+    size_per_second = fixed.stat().st_size / ((times[-1] - times[0]) * 1e-9)
+    lost_seconds = (last_seen - times[-1]) * 1e-9
+    assert lost_seconds * size_per_second < 2 * DEFAULT_CHUNK_SIZE
+
+
+def test_bad_commands_are_refused_and_the_node_keeps_running(tmp_path, probe):
+    node = start_node(params(tmp_path, real_time_factor=2.0), tmp_path / "node.log")
+    try:
+        poses = wait_for_output(probe, node)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        pub = probe.publisher(Float64, "/steering_angle")
+        for bad in (math.nan, math.inf, -math.inf, 10.0):
+            pub.publish(Float64(data=bad))
+            probe.spin_until(lambda: False, 0.05)  # keep-last-10: give each its turn on the wire
+
+        def reported(key, at_least):
+            def check():
+                for d in diags:
+                    values = {kv.key: kv.value for kv in d.status[0].values}
+                    if int(values.get(key, 0)) >= at_least:
+                        return True
+                return False
+            return check
+
+        assert probe.spin_until(reported("steering_rejected", 3), 10.0)
+        assert probe.spin_until(reported("steering_clamped", 1), 10.0)
+        assert any("steering_angle" in d.status[0].message for d in diags)  # said what was wrong
+        for i in range(5000):  # a burst, as fast as this process can publish
+            pub.publish(Float64(data=0.05 * math.sin(i)))
+        n = len(poses)
+        assert probe.spin_until(lambda: len(poses) > n + 20, 20.0), "the node stopped publishing"
+        assert node.poll() is None
+        # keep-last-10 QoS on both ends: a burst arrives in part; only the latest command matters
+        assert probe.spin_until(reported("steering_commands", 4 + 10), 10.0)
+    finally:
+        assert stop(node) == 0
+    data = read_bag(bags_in(tmp_path / "bags")[0])
+    steering = [m.data for _, m in data["/steering_angle"]]
+    assert any(math.isnan(x) for x in steering)  # logged as received
+    assert all(abs(m.data) <= 0.7 for _, m in data["/applied_steering"])  # never applied
+
+
+def test_an_unwritable_bag_dir_does_not_stop_the_simulation(tmp_path, probe):
+    not_a_dir = tmp_path / "file"
+    not_a_dir.write_text("x")
+    node = start_node(params(tmp_path, bag_dir=str(not_a_dir)), tmp_path / "node.log")
+    try:
+        wait_for_output(probe, node, count=10)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        assert probe.spin_until(lambda: any("recording stopped" in d.status[0].message for d in diags), 10.0)
+    finally:
+        assert stop(node) == 0
+
+
+def test_a_jackknife_halts_the_model_not_the_node(tmp_path, probe):
+    node = start_node(params(tmp_path, real_time_factor=8.0), tmp_path / "node.log")
+    try:
+        poses = wait_for_output(probe, node)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        pub = probe.publisher(Float64, "/steering_angle")
+        pub.publish(Float64(data=0.45))  # no steady turn: the seeder jackknifes (steady.py)
+        assert probe.spin_until(lambda: any(d.status[0].level == b"\x02" for d in diags), 60.0)
+        assert "jackknife" in next(d.status[0].message for d in diags if d.status[0].level == b"\x02")
+        assert node.poll() is None
+        pub.publish(Float64(data=0.0))
+        assert probe.call(Trigger, "/reset", Trigger.Request()).success
+        n = len(poses)
+        assert probe.spin_until(lambda: len(poses) > n + 5, 10.0)
+    finally:
+        assert stop(node) == 0
+
+
+@pytest.mark.parametrize("bad,expected", [
+    (dict(publish_rate=-5.0), "publish_rate"),
+    (dict(integrator_method="RK99"), "integrator_method"),
+    (dict(scene_file="/nowhere/scene.yaml"), "scene_file"),
+    (dict(publish_rate=10.0, integrator_step=0.5), "integrator_step"),
+])
+def test_invalid_parameters_stop_the_start_with_one_message(tmp_path, bad, expected):
+    node = start_node(params(tmp_path, **bad), tmp_path / "node.log")
+    assert node.wait(timeout=60) != 0
+    log = (tmp_path / "node.log").read_text()
+    assert expected in log and "Traceback" not in log
