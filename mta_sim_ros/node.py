@@ -178,6 +178,7 @@ class SimNode(Node):
         self.paused = False
         self.halted = ""  # why the model stopped (jackknife...): the node stays up until a reset
         self.stats = TickStats()
+        self.run_started = time.monotonic()
         self.ticks_since_markers = 0
         self.marker_every = max(1, round(self.cfg["publish_rate"] / self.cfg["marker_rate"]))
         self.wall_start = time.monotonic()
@@ -271,6 +272,10 @@ class SimNode(Node):
 
     # -- services --------------------------------------------------------------------------
     def _on_reset(self, request, response):
+        if self.recorder is not None:
+            self.recorder.close(self.run_figures())  # this run's bag, with its figures
+        self.stats = TickStats()
+        self.run_started = time.monotonic()
         self.clock_offset = self.now
         self.sim.reset()
         self.steering.value = self.scene.initial.steering
@@ -371,10 +376,23 @@ class SimNode(Node):
         self.pubs["/diagnostics"].publish(msg)
         self._record("/diagnostics", msg)
 
+    def run_figures(self) -> dict[str, str]:
+        """Whole-run tick compute statistics (s) and deadline misses, as strings."""
+        figures = {f"tick_{k}": repr(v) for k, v in self.stats.summary().items() if not k.startswith("window")}
+        figures.update(sim_time=repr(self.now), tick_period=repr(self.period),
+                       run_sim_time=repr(self.sim.t), run_wall_time=repr(time.monotonic() - self.run_started))
+        return figures
+
     def close(self) -> None:
-        """Finish the bag (normal exit, SIGINT, SIGTERM)."""
+        """Finish the bag (normal exit, SIGINT, SIGTERM), with this run's timing figures."""
+        s = self.stats.summary()
+        if s["count"]:
+            self.get_logger().info(
+                f"{s['count']} ticks: compute p50 {s['p50'] * 1e3:.3f} ms, p99 {s['p99'] * 1e3:.3f} ms, "
+                f"p99.9 {s['p99.9'] * 1e3:.3f} ms, max {s['max'] * 1e3:.3f} ms; "
+                f"{s['deadline_misses']} deadline misses (tick period {self.period * 1e3:.2f} ms)")
         if self.recorder is not None:
-            self.recorder.close()
+            self.recorder.close(self.run_figures())
 
 
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"

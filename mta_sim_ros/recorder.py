@@ -56,7 +56,14 @@ class RunRecorder:
         except BagError as err:
             self._fail(err)
 
-    def close(self) -> None:
+    def close(self, closing_metadata: dict[str, str] | None = None) -> None:
+        """Finish the bag; ``closing_metadata`` (figures known only at the end, such as the tick
+        statistics) goes in as the metadata record ``mta_sim_ros.run``."""
+        if self.writer is not None and closing_metadata:
+            try:
+                self.writer.add_metadata("mta_sim_ros.run", closing_metadata)
+            except BagError as err:
+                self.error = str(err)
         if self.writer is not None:
             try:
                 self.writer.close()
