@@ -32,8 +32,7 @@ def node_main(args: argparse.Namespace) -> int:
     from .node import main, resolve_config_path
 
     params = resolve_config_path(args.params_file or "sim.yaml")
-    extra = [a for a in args.ros_args if a != "--ros-args"]
-    return main(["mta_node", "--ros-args", "--params-file", params, *extra])
+    return main(["mta_node", "--ros-args", "--params-file", params, *args.ros_args[1:]])
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("node", help="the ROS 2 simulator node (as `ros2 run mta_sim_ros sim_node`)",
                        description="Runs the simulator node until SIGINT/SIGTERM. Parameters: config/sim.yaml.")
     p.add_argument("--params-file", help="ROS parameters YAML (default: config/sim.yaml)")
-    p.add_argument("ros_args", nargs=argparse.REMAINDER, help="further ROS arguments (after --ros-args)")
+    p.epilog = "Further ROS arguments follow --ros-args, e.g. mta node --ros-args -r __ns:=/unit1"
     p.set_defaults(func=node_main)
 
     p = sub.add_parser("recover", help="rebuild a readable bag from one cut short (SIGKILL, power loss)")
@@ -61,11 +60,21 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="validate train and scene files without running them")
     p.add_argument("files", nargs="+", help="YAML files (config/trains/*.yaml, config/scenes/*.yaml)")
     p.set_defaults(func=check_main)
+
+    from .tools import bench
+    p = sub.add_parser("bench", help="benchmarks: the node in real time (realtime), the integrators (method)",
+                       description=bench.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    bench.add_arguments(p)
+    p.set_defaults(func=bench.main)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # everything from --ros-args on belongs to ROS (as for any ROS executable)
+    split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
+    args = build_parser().parse_args(argv[:split])
+    args.ros_args = argv[split:]
     return args.func(args)
 
 

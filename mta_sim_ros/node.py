@@ -58,7 +58,7 @@ def config_dir() -> Path:
         share = Path(get_package_share_directory("mta_sim_ros")) / "config"
         if share.is_dir():
             return share
-    except (ImportError, PackageNotFoundError, ValueError):
+    except (ImportError, PackageNotFoundError, ValueError, OSError):  # OSError: no AMENT_PREFIX_PATH (a pip venv)
         pass
     return Path(__file__).resolve().parent.parent / "config"
 

@@ -33,8 +33,8 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 
 def write_params(path: Path, **params) -> Path:
-    """A ROS parameters file for the node 'mta_sim'."""
-    lines = ["mta_sim:", "  ros__parameters:"]
+    """A ROS parameters file for the simulator node."""
+    lines = ["/**:", "  ros__parameters:"]  # matches the node under any namespace
     for k, v in params.items():
         value = ("true" if v else "false") if isinstance(v, bool) else repr(v) if isinstance(v, str) else v
         lines.append(f"    {k}: {value}")
@@ -42,9 +42,12 @@ def write_params(path: Path, **params) -> Path:
     return path
 
 
-def start_node(params_file: Path, log: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", "node", "--params-file", str(params_file)],
-                            env=ros_env(), stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO)
+def start_node(params_file: Path, log: Path, ros_args=(), preexec_fn=None) -> subprocess.Popen:
+    """The simulator node in its own process; ``ros_args`` are passed after --ros-args."""
+    extra = ["--ros-args", *ros_args] if ros_args else []
+    return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", "node", "--params-file", str(params_file),
+                             *extra], env=ros_env(), stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO,
+                            preexec_fn=preexec_fn)
 
 
 def start_python(code: str, log: Path) -> subprocess.Popen:

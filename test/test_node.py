@@ -269,3 +269,89 @@ def test_invalid_parameters_stop_the_start_with_one_message(tmp_path, bad, expec
     assert node.wait(timeout=60) != 0
     log = (tmp_path / "node.log").read_text()
     assert expected in log and "Traceback" not in log
+
+
+@pytest.mark.parametrize("action", ["straight", "hold"])
+def test_stale_steering_command_triggers_the_watchdog(tmp_path, probe, action):
+    # 1.5 s: longer than the rate-limited actuator (0.5 rad/s) needs to reach the command
+    node = start_node(params(tmp_path, real_time_factor=1.0, watchdog_timeout=1.5, watchdog_action=action),
+                      tmp_path / "node.log")
+    try:
+        wait_for_output(probe, node)
+        applied = probe.subscribe("/applied_steering", Float64)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        pub = probe.publisher(Float64, "/steering_angle")
+        pub.publish(Float64(data=0.3))
+        assert probe.spin_until(lambda: applied and applied[-1].data > 0.25, 10.0)  # steered, then silence
+        assert probe.spin_until(lambda: any("stale" in d.status[0].message for d in diags), 10.0)
+        probe.spin_until(lambda: False, 2.0)  # > 4 actuator time constants after the timeout
+        if action == "straight":
+            assert abs(applied[-1].data) < 0.02
+        else:
+            assert applied[-1].data == pytest.approx(0.3, abs=1e-3)
+    finally:
+        assert stop(node) == 0
+
+
+def _limit_file_size():
+    """In the node's process: files may not grow past 300 kB (a disk that fills up mid-run);
+    SIGXFSZ ignored so the write fails with EFBIG instead of killing the process."""
+    import resource
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, 300_000))
+
+
+def test_a_disk_filling_up_mid_run_stops_recording_not_the_simulation(tmp_path, probe):
+    node = start_node(params(tmp_path, real_time_factor=0.0), tmp_path / "node.log", preexec_fn=_limit_file_size)
+    try:
+        poses = wait_for_output(probe, node)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        assert probe.spin_until(lambda: any("recording stopped" in d.status[0].message for d in diags), 60.0)
+        n = len(poses)
+        assert probe.spin_until(lambda: len(poses) > n + 20, 10.0), "the simulation stopped with the recording"
+    finally:
+        assert stop(node) == 0
+    [bag] = bags_in(tmp_path / "bags")
+    fixed = tmp_path / "fixed.mcap"
+    done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "recover", str(bag), "-o", str(fixed)],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert len(read_bag(fixed)["/hitch_poses"]) > 100  # what was logged before the disk filled
+
+
+def test_a_namespace_moves_every_relative_name(tmp_path, probe):
+    node = start_node(params(tmp_path), tmp_path / "node.log", ros_args=["-r", "__ns:=/unit1"])
+    try:
+        poses = probe.subscribe("/unit1/hitch_poses", PoseArray)
+        clock = probe.subscribe("/clock", Clock)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)  # global by convention, published at 1 Hz
+        assert probe.spin_until(lambda: len(poses) > 3 and len(clock) > 3 and diags, 30.0)
+        assert probe.call(SetBool, "/unit1/pause", SetBool.Request(data=False)).success
+    finally:
+        assert stop(node) == 0
+    topics = set(read_bag(bags_in(tmp_path / "bags")[0]))
+    assert {"/unit1/hitch_poses", "/unit1/traction_power", "/clock", "/diagnostics"} <= topics
+
+
+def test_parameters_that_cannot_change_live_are_refused_with_a_reason(tmp_path, probe):
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    node = start_node(params(tmp_path), tmp_path / "node.log")
+    try:
+        wait_for_output(probe, node)
+
+        def set_double(name, value):
+            p = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))
+            return probe.call(SetParameters, "/mta_sim/set_parameters", SetParameters.Request(parameters=[p])).results[0]
+
+        refused = set_double("publish_rate", 20.0)
+        assert not refused.successful and "cannot change while running" in refused.reason
+        out_of_range = set_double("real_time_factor", -1.0)
+        assert not out_of_range.successful
+        assert set_double("real_time_factor", 3.0).successful
+        clock = probe.subscribe("/clock", Clock)
+        assert probe.spin_until(lambda: len(clock) > 100, 10.0)  # still ticking, now faster
+    finally:
+        assert stop(node) == 0
