@@ -351,6 +351,10 @@ class SimNode(Node):
             "sim_time_s": self.now,
             "real_time_factor": rtf,
             "real_time_factor_target": self.cfg["real_time_factor"],
+            # how far simulated time trails the wall clock (times the target factor): slow ticks
+            # make the simulation fall behind, they never skip physics
+            "lag_s": max(0.0, wall * self.cfg["real_time_factor"] - (self.now - self.sim_at_wall_start))
+            if not self.paused else 0.0,
             "tick_compute_p50_ms": self.stats.window_percentile(50) * 1e3,
             "tick_compute_p99_ms": self.stats.window_percentile(99) * 1e3,
             "tick_compute_max_ms": self.stats.window_max * 1e3,

@@ -18,6 +18,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from mta_sim_ros.bag import DEFAULT_CHUNK_SIZE
+from mta_sim_ros.bag import summary as bag_summary
 from mta_sim_ros.model.loader import load_scene
 from mta_sim_ros.sim import Simulation
 
@@ -108,6 +109,14 @@ def test_steered_over_dds_the_node_matches_the_offline_simulation(tmp_path, prob
     [bag_path] = bags_in(tmp_path / "bags")
     bag = read_bag(bag_path)
     assert len(bag["/steering_angle"]) >= 40  # 20 Hz for 3 s
+    # the second reader (mcap + mcap_ros2) sees the same topics and counts; one output per tick
+    counts = {topic: len(v) for topic, v in bag.items()}
+    assert {t: s["count"] for t, s in bag_summary(str(bag_path)).items() if s["count"]} == counts
+    ticks = counts["/hitch_poses"]
+    for topic in ("/cart_velocities", "/traction_power", "/applied_steering", "/clock"):
+        assert counts[topic] == ticks
+    assert counts["/markers"] == ticks // round(RATE / 10.0)  # marker_rate 10 Hz
+    assert counts["/diagnostics"] >= 3
     expected = resimulate(bag)
     for log_time, msg in bag["/hitch_poses"]:
         out = expected[log_time]
@@ -161,10 +170,11 @@ def test_pause_and_reset(tmp_path, probe):
         assert len(read_bag(b)["/hitch_poses"]) > 0
 
 
-def test_sigterm_leaves_a_complete_bag(tmp_path, probe):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_stop_signal_leaves_a_complete_bag(tmp_path, probe, sig):
     node = start_node(params(tmp_path), tmp_path / "node.log")
     wait_for_output(probe, node, count=20)
-    assert stop(node, signal.SIGTERM) == 0
+    assert stop(node, sig) == 0
     [bag] = bags_in(tmp_path / "bags")
     data = read_bag(bag)  # needs the summary and footer: a finished file
     assert len(data["/hitch_poses"]) >= 20
