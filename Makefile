@@ -25,11 +25,12 @@ COLCON_ARGS ?=
 SCENE ?= config/scenes/headland_turn.yaml
 BAG ?= bags/headland_turn.mcap
 
-.PHONY: venv run test colcon clean distclean help
+.PHONY: venv run node test colcon clean distclean help
 
 help:
 	@echo "make venv     create $(VENV) (Python 3.11) with requirements.txt + pip install -e ."
 	@echo "make run      run the main scene ($(SCENE)) and record $(BAG)"
+	@echo "make node     start the simulator node (config/sim.yaml), until Ctrl-C"
 	@echo "make test     run the test suite (pytest)"
 	@echo "make colcon   colcon build into $(COLCON_BASE)/build, install, log"
 	@echo "make clean    remove build artifacts (keeps $(VENV)); distclean also removes $(VENV)"
@@ -47,6 +48,9 @@ $(STAMP): requirements.txt setup.py setup.cfg
 run: $(STAMP)
 	@mkdir -p $(dir $(BAG))
 	$(VENV)/bin/mta run --scene $(SCENE) --bag $(BAG)
+
+node: $(STAMP)
+	$(VENV)/bin/mta node --params-file config/sim.yaml
 
 test: $(STAMP)
 	$(VPY) -m pytest -q test
