@@ -1,0 +1,566 @@
+"""``mta replay``: play a bag back over ROS 2, or re-simulate it offline and compare.
+
+``mta replay BAG [--rate R] [--loop] [--topics T ...] [--start S] [--ros-args ...]``
+    A ROS node (``mta_replay``) that republishes the bag's messages as they were recorded (the
+    serialized CDR bytes, unchanged) with their original timing: message i goes out at
+    start + (log_time_i - origin) / R on the steady clock, scheduled against the start instant,
+    so the pace never drifts. origin = the bag's first message + S seconds (--start). Each
+    topic gets a publisher of the channel's type with the QoS the recording publisher offered
+    (channel metadata ``offered_qos_profiles``; the node's QoS when absent). Names as the node
+    uses them: /clock, /diagnostics, /tf, /tf_static are global, every other recorded topic is
+    published relative to the replay node's namespace, so with no remapping the names are as
+    recorded and ``--ros-args -r __ns:=/unit2`` moves them under /unit2. Ends at the end of the
+    bag (or loops with --loop, each pass starting when the previous one ends) and on SIGINT or
+    SIGTERM, after the subscribers have acknowledged the last messages of reliable topics (at
+    most ACK_TIMEOUT); shows a progress bar on a terminal. Put BAG before --topics.
+    --wait-for-subscribers S holds the start until every publisher has a subscriber (at most
+    S seconds): a volatile topic's first messages are lost on a subscriber still matching.
+
+``mta replay BAG --resimulate [--method M] [--step H]``
+    No ROS. Rebuilds the run from the bag's own metadata record ``mta_sim_ros`` (the scene and
+    train files as read, method, step, rate), feeds the recorded commands into a fresh
+    ``sim.Simulation`` tick by tick (the tick starting at t_k holds the last steering_angle and
+    speed_setpoint message with log_time <= t_k, as both ``mta run`` and the node stamp them;
+    a node bag's commands go through the node's own checks: non-finite refused, out of range
+    clamped), and compares the re-simulated hitch_poses, cart_velocities, traction_power and
+    applied_steering with the recorded ones at every tick. Prints the largest deviation of
+    each and ``identical`` when every value is exactly equal (the same method and step must
+    give that). --method / --step re-simulate with another integrator and report how far it
+    lands. Exit code 0 when compared, 1 on an error (unreadable bag, no metadata, bad files).
+    Topics may carry a namespace (matched by their last name component); a node bag's time
+    may be offset after a reset (metadata ``clock_offset``).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import signal
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..bag import BagError, read_messages, read_metadata
+from .run import Progress
+
+#: Outputs compared by --resimulate (last name component of the topic).
+OUTPUTS = ("hitch_poses", "cart_velocities", "traction_power", "applied_steering")
+#: Commands fed into the re-simulation.
+COMMANDS = ("steering_angle", "speed_setpoint")
+#: Topics republished under their recorded (global) name; the others move with the namespace.
+GLOBAL_TOPICS = frozenset({"/clock", "/diagnostics", "/tf", "/tf_static", "/rosout", "/parameter_events"})
+#: The node's bounds of a speed set-point, m/s (node.SimNode: CommandInput(..., -50.0, 50.0, ...)).
+SPEED_LIMIT = 50.0
+
+#: At the end, how long the replay waits at most for the subscribers to acknowledge the last messages, s.
+ACK_TIMEOUT = 2.0
+
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("bag", help="the MCAP bag (from mta run or the node)")
+    p.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default 1: as recorded)")
+    p.add_argument("--loop", action="store_true", help="play again from the start at the end, until stopped")
+    p.add_argument("--topics", nargs="+", metavar="T", help="only these topics (as recorded; default: all)")
+    p.add_argument("--start", type=float, default=0.0, metavar="S",
+                   help="start S seconds after the bag's first message (default 0)")
+    p.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
+                   help="before playing, wait up to S seconds until every topic has a subscriber (default 0)")
+    p.add_argument("--resimulate", action="store_true",
+                   help="no ROS: re-run the recorded commands through the simulator, compare with the bag")
+    p.add_argument("--method", help="with --resimulate: integrator to use instead of the recorded one")
+    p.add_argument("--step", type=float, help="with --resimulate: integrator step, s, instead of the recorded one")
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.resimulate:
+        if args.loop or args.topics or args.start or args.rate != 1.0 or args.wait_for_subscribers:
+            print("mta replay: --rate, --loop, --topics, --start and --wait-for-subscribers are for playing, "
+                  "not with --resimulate", file=sys.stderr)
+            return EXIT_USAGE
+        return resimulate_main(args)
+    if args.method or args.step:
+        print("mta replay: --method and --step need --resimulate", file=sys.stderr)
+        return EXIT_USAGE
+    if not args.rate > 0 or not math.isfinite(args.rate):
+        print(f"mta replay: --rate {args.rate} must be > 0", file=sys.stderr)
+        return EXIT_USAGE
+    if not args.start >= 0 or not math.isfinite(args.start):
+        print(f"mta replay: --start {args.start} must be >= 0", file=sys.stderr)
+        return EXIT_USAGE
+    return play_main(args)
+
+
+# ==================================================================================== playing
+
+
+def last_component(topic: str) -> str:
+    return topic.rstrip("/").rsplit("/", 1)[-1]
+
+
+def publish_name(topic: str) -> str:
+    """The name the replay publishes a recorded topic under (see the module docstring)."""
+    return topic if topic in GLOBAL_TOPICS else topic.lstrip("/")
+
+
+def parse_qos(metadata: dict[str, str]):
+    """rclpy QoSProfile of a channel's ``offered_qos_profiles`` (its first publisher), or the
+    node's QoS when there is none or it cannot be read."""
+    import yaml
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from ..node import QOS
+
+    try:
+        offered = yaml.safe_load(metadata.get("offered_qos_profiles", "") or "null")
+        first = offered[0] if isinstance(offered, list) and offered else None
+        if not isinstance(first, dict):
+            return QOS
+        history = {"keep_last": HistoryPolicy.KEEP_LAST, "keep_all": HistoryPolicy.KEEP_ALL}.get(
+            first.get("history"), QOS.history)
+        reliability = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}.get(
+            first.get("reliability"), QOS.reliability)
+        durability = {"volatile": DurabilityPolicy.VOLATILE, "transient_local": DurabilityPolicy.TRANSIENT_LOCAL}.get(
+            first.get("durability"), QOS.durability)
+        depth = int(first.get("depth") or QOS.depth)
+        return QoSProfile(history=history, depth=depth, reliability=reliability, durability=durability)
+    except (yaml.YAMLError, TypeError, ValueError, AttributeError):
+        return QOS
+
+
+def play_main(args: argparse.Namespace) -> int:
+    from mcap.reader import make_reader
+
+    try:
+        f = open(args.bag, "rb")
+    except OSError as err:
+        print(f"mta replay: cannot open bag file {args.bag}: {err.strerror or err}", file=sys.stderr)
+        return EXIT_ERROR
+    with f:
+        try:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+        except Exception as err:  # McapError, struct.error... on a damaged file
+            print(f"mta replay: cannot read bag file {args.bag}: {err!r} (a bag cut short: mta recover)",
+                  file=sys.stderr)
+            return EXIT_ERROR
+        if summary is None or summary.statistics is None or not summary.statistics.message_count:
+            print(f"mta replay: {args.bag} has no messages (or no summary: mta recover)", file=sys.stderr)
+            return EXIT_ERROR
+        channels = summary.channels
+        recorded = sorted({c.topic for c in channels.values()})
+        selected = set(recorded)
+        if args.topics:
+            wanted = {t if t.startswith("/") else "/" + t for t in args.topics}
+            unknown = sorted(wanted - selected)
+            if unknown:
+                print(f"mta replay: {', '.join(unknown)} not in {args.bag} (it holds {', '.join(recorded)})",
+                      file=sys.stderr)
+                return EXIT_ERROR
+            selected = wanted
+        bag_start = summary.statistics.message_start_time
+        bag_end = summary.statistics.message_end_time
+        origin = bag_start + round(args.start * 1e9)
+        span = max(0, bag_end - origin)
+        if origin > bag_end:
+            print(f"mta replay: --start {args.start:g} is past the bag's end "
+                  f"({(bag_end - bag_start) / 1e9:.3f} s after its first message)", file=sys.stderr)
+            return EXIT_ERROR
+        return _play(args, reader, summary, selected, origin, span)
+
+
+def _play(args, reader, summary, selected: set[str], origin: int, span: int) -> int:
+    import rclpy
+    from rclpy.duration import Duration
+    from rclpy.signals import SignalHandlerOptions
+
+    from ..ros_msgs import message_class
+
+    rclpy.init(args=["mta_replay", *getattr(args, "ros_args", [])],
+               signal_handler_options=SignalHandlerOptions.NO)
+    stop: list[int] = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: stop.append(signum))
+    node = rclpy.create_node("mta_replay")
+    progress = Progress(span / 1e9)
+    published = 0
+    try:
+        pubs = {}
+        for cid, channel in summary.channels.items():
+            if channel.topic not in selected:
+                continue
+            schema = summary.schemas.get(channel.schema_id)
+            try:
+                cls = message_class(schema.name) if schema else None
+            except (ImportError, AttributeError, ValueError):
+                cls = None
+            if cls is None or channel.message_encoding != "cdr":
+                explicit = args.topics is not None
+                what = f"type {schema.name if schema else '(none)'} / encoding {channel.message_encoding}"
+                print(f"mta replay: {'cannot play' if explicit else 'skipping'} {channel.topic}: {what} "
+                      f"not available here", file=sys.stderr)
+                if explicit:
+                    return EXIT_ERROR
+                continue
+            pubs[cid] = node.create_publisher(cls, publish_name(channel.topic), parse_qos(dict(channel.metadata)))
+        if not pubs:
+            print("mta replay: nothing to play", file=sys.stderr)
+            return EXIT_ERROR
+        if args.wait_for_subscribers > 0:
+            deadline = time.monotonic() + args.wait_for_subscribers
+            while not stop and time.monotonic() < deadline and any(
+                    p.get_subscription_count() == 0 for p in pubs.values()):
+                time.sleep(0.02)
+        topics = sorted({summary.channels[c].topic for c in pubs})
+        scale = 1.0 / (args.rate * 1e9)
+        t0 = time.monotonic()
+        while not stop:
+            for _, channel, message in reader.iter_messages(topics=topics, start_time=origin, log_time_order=True):
+                pub = pubs.get(message.channel_id)
+                if pub is None:
+                    continue
+                due = t0 + (message.log_time - origin) * scale
+                while not stop and (left := due - time.monotonic()) > 0:
+                    time.sleep(min(left, 0.05))
+                if stop:
+                    break
+                pub.publish(bytes(message.data))
+                published += 1
+                progress.update((message.log_time - origin) / 1e9)
+            if not args.loop:
+                break
+            t0 += (span or 10**9) * scale  # the next pass starts where this one was due to end: no drift
+        progress.close()
+        # reliable topics: the last messages may still be on their way; leaving now would lose them
+        end = time.monotonic() + ACK_TIMEOUT
+        for pub in pubs.values():
+            pub.wait_for_all_acked(Duration(seconds=max(0.0, end - time.monotonic())))
+        print(f"mta replay: {published} messages published"
+              + (f" (stopped by signal {stop[0]})" if stop else ""), file=sys.stderr)
+        return 0
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+# ================================================================================ resimulating
+
+
+@dataclass
+class Deviation:
+    """How far one re-simulated output lands from the recorded one."""
+
+    largest: float = 0.0  # largest |re-simulated - recorded| over every numeric field and tick
+    where: str = ""  # in which field (e.g. poses[2].position.y)
+    t: float = math.nan  # at which log time, s
+    compared: int = 0  # messages compared
+    mismatches: list[str] = field(default_factory=list)  # stamps, names, sizes, messages off the ticks
+
+    def add(self, diff: float, where: str, t: float) -> None:
+        if diff > self.largest or (math.isnan(diff) and not math.isnan(self.largest)):
+            self.largest, self.where, self.t = diff, where, t
+
+
+@dataclass
+class Resimulation:
+    bag: str
+    scene: str
+    method: str
+    step: float
+    tick: float
+    recorded_method: str
+    recorded_step: float
+    ticks: int = 0
+    outputs: dict[str, Deviation] = field(default_factory=dict)
+    stopped: str = ""  # the error that stopped the re-simulation before the bag's end
+    not_compared: int = 0  # recorded outputs after that
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def identical(self) -> bool:
+        return (not self.stopped and not self.not_compared and bool(self.outputs)
+                and all(d.compared and d.largest == 0.0 and not d.mismatches for d in self.outputs.values()))
+
+
+class ResimulationError(Exception):
+    """The bag cannot be re-simulated (no metadata, files that do not load, ...)."""
+
+
+def rebuild_scene(meta: dict[str, str], workdir: str):
+    """The run's scene from the metadata's file texts: written to ``workdir`` (scene and train
+    under their recorded base names), the scene's ``train:`` pointing at the written train."""
+    from ..model.loader import SpecError, load_scene
+
+    for key in ("scene_yaml", "train_yaml"):
+        if key not in meta:
+            raise ResimulationError(f"metadata mta_sim_ros has no {key}")
+    scene_name = os.path.basename(meta.get("scene_file") or "scene.yaml") or "scene.yaml"
+    train_name = os.path.basename(meta.get("train_file") or "train.yaml") or "train.yaml"
+    os.makedirs(os.path.join(workdir, "scene"), exist_ok=True)
+    os.makedirs(os.path.join(workdir, "train"), exist_ok=True)
+    train_path = os.path.join(workdir, "train", train_name)
+    scene_path = os.path.join(workdir, "scene", scene_name)
+    Path(train_path).write_text(meta["train_yaml"])
+    Path(scene_path).write_text(point_scene_at_train(meta["scene_yaml"], train_path))
+    try:
+        return load_scene(scene_path)
+    except SpecError as err:
+        raise ResimulationError(f"the recorded scene does not load: {err}") from None
+
+
+def point_scene_at_train(scene_yaml: str, train_path: str) -> str:
+    """The scene text with its top-level ``train:`` naming ``train_path`` (absolute)."""
+    import json
+
+    text, count = re.subn(r"(?m)^train[ \t]*:[^\n]*$", lambda m: "train: " + json.dumps(train_path), scene_yaml)
+    if count == 1:
+        return text
+    # not a one-line block key (flow style, ...): through YAML, read as the loader reads it
+    import yaml
+
+    from ..model.loader import _Loader
+
+    data = yaml.load(scene_yaml, Loader=_Loader)
+    if not isinstance(data, dict) or "train" not in data:
+        raise ResimulationError("the recorded scene has no train:")
+    data["train"] = train_path
+    return yaml.safe_dump(data, sort_keys=False)
+
+
+def _topics_by_name(bag: str, names) -> dict[str, str]:
+    """Recorded topic for each wanted last name component (a namespace prefix is allowed)."""
+    from ..bag import summary
+
+    found: dict[str, list[str]] = {}
+    for topic in summary(bag):
+        found.setdefault(last_component(topic), []).append(topic)
+    out = {}
+    for name in names:
+        topics = found.get(name, [])
+        if len(topics) > 1:
+            raise ResimulationError(f"several topics end in {name}: {', '.join(sorted(topics))}")
+        if topics:
+            out[name] = topics[0]
+    return out
+
+
+def _flatten(value, path: str = ""):
+    """(path, value) of every leaf of a plain-dict message, lists indexed."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from _flatten(v, f"{path}.{k}" if path else k)
+    elif isinstance(value, (list, tuple)):
+        yield f"{path}#len", len(value)
+        for i, v in enumerate(value):
+            yield from _flatten(v, f"{path}[{i}]")
+    else:
+        yield path, value
+
+
+def _leaf(msg, path: str):
+    """The value at ``path`` (as made by _flatten) of a decoded message."""
+    obj = msg
+    for part in re.findall(r"[^.\[\]#]+|\[\d+\]|#len", path):
+        if part == "#len":
+            return len(obj)
+        obj = obj[int(part[1:-1])] if part.startswith("[") else getattr(obj, part)
+    return obj
+
+
+def compare_message(dev: Deviation, name: str, recorded, expected: dict, t: float) -> None:
+    """Fold one recorded message against the re-simulated plain-dict message into ``dev``:
+    floats as deviations, integers (stamps, lengths) and names as mismatches; frame ids are
+    not compared (they may change while the node runs)."""
+    dev.compared += 1
+    for path, want in _flatten(expected):
+        if path.endswith("frame_id"):
+            continue
+        try:
+            got = _leaf(recorded, path)
+        except (AttributeError, IndexError, TypeError):
+            dev.mismatches.append(f"t = {t:.6f} s: {name} has no {path}")
+            return
+        if isinstance(want, float):
+            got = float(got)
+            if got == want or (math.isnan(got) and math.isnan(want)):
+                continue
+            diff = abs(got - want)
+            dev.add(math.inf if math.isnan(diff) else diff, path, t)
+        elif got != want:
+            dev.mismatches.append(f"t = {t:.6f} s: {name} {path} is {got!r}, re-simulated {want!r}")
+            if path.endswith("#len"):
+                return
+
+
+class _Held:
+    """A command as the receiver holds it: the node refuses non-finite values and clamps to its
+    range; ``mta run`` takes the values as they are."""
+
+    def __init__(self, value: float, low: float | None = None, high: float | None = None):
+        self.value, self.low, self.high = value, low, high
+
+    def take(self, x: float) -> None:
+        if self.low is None:
+            self.value = x
+            return
+        if not math.isfinite(x):
+            return
+        self.value = min(max(x, self.low), self.high)
+
+
+def resimulate(bag: str, method: str | None = None, step: float | None = None, progress=None) -> Resimulation:
+    """Re-run the bag's commands through a fresh Simulation and compare the outputs with the
+    bag's (see the module docstring). Raises ResimulationError or BagError."""
+    from ..integrate import METHODS, IntegrationError
+    from ..model.guards import ModelValidityError
+    from ..sim import Simulation
+    from ..topics import output_messages
+
+    if method is not None and method not in METHODS:
+        raise ResimulationError(f"--method {method!r} is not one of {', '.join(METHODS)}")
+    if step is not None and not step > 0:
+        raise ResimulationError(f"--step {step} must be > 0")
+    meta = read_metadata(bag).get("mta_sim_ros")
+    if meta is None:
+        raise ResimulationError(f"{bag} has no metadata record mta_sim_ros (not a bag of mta run or the node)")
+    node_bag = any(k.startswith("param.") for k in meta)
+    try:
+        recorded_method = meta["method"]
+        recorded_step = float(meta["step"])
+        rate = float(meta["param.publish_rate"] if "param.publish_rate" in meta else meta["rate"])
+        offset = float(meta.get("clock_offset", "0"))
+        algorithm = int(meta.get("algorithm", "2"))
+    except (KeyError, ValueError) as err:
+        raise ResimulationError(f"metadata mta_sim_ros: missing or bad {err}") from None
+    with tempfile.TemporaryDirectory(prefix="mta_replay_") as workdir:
+        scene = rebuild_scene(meta, workdir)
+    try:
+        sim = Simulation(scene, method=method or recorded_method, step=step or recorded_step, rate=rate,
+                         algorithm=algorithm)
+    except ValueError as err:
+        raise ResimulationError(str(err)) from None
+    result = Resimulation(bag=bag, scene=scene.name, method=sim.method, step=sim.step, tick=sim.tick,
+                          recorded_method=recorded_method, recorded_step=recorded_step)
+    if node_bag and meta.get("param.watchdog_action") == "straight" and meta.get(
+            "param.watchdog_timeout", "0") not in ("0", "0.0"):
+        result.notes.append("the node ran with watchdog_action 'straight': a command it dropped as stale is "
+                            "not in the bag, so ticks after one may differ")
+
+    topics = _topics_by_name(bag, OUTPUTS + COMMANDS)
+    missing = [n for n in OUTPUTS if n not in topics]
+    if len(missing) == len(OUTPUTS):
+        raise ResimulationError(f"{bag} holds none of {', '.join(OUTPUTS)}")
+    for name in missing:
+        result.notes.append(f"no {name} in the bag")
+    result.outputs = {name: Deviation() for name in OUTPUTS if name in topics}
+    by_topic = {topic: name for name, topic in topics.items() if name in OUTPUTS}
+
+    max_angle = scene.train.actuator.max_angle
+    steering = _Held(sim.command, *((-max_angle, max_angle) if node_bag else (None, None)))
+    speed = _Held(sim.v_set, *((-SPEED_LIMIT, SPEED_LIMIT) if node_bag else (None, None)))
+    commands = []  # (log_time, order, holder, value), in log-time order, ties in recorded order
+    for name, holder in (("steering_angle", steering), ("speed_setpoint", speed)):
+        if name in topics:
+            commands += [(lt, i, holder, float(m.data)) for i, (_, lt, m) in
+                         enumerate(read_messages(bag, [topics[name]]))]
+    commands.sort(key=lambda c: (c[0], c[1]))
+    next_command = 0
+
+    def key() -> int:  # log time of the current tick, ns, as the recorders compute it
+        return round((offset + sim.t) * 1e9)
+
+    cart_names = [c.name for c in scene.train.carts]
+    expected, expected_at = None, None
+    for topic, log_time, msg in read_messages(bag, list(by_topic)):
+        name = by_topic[topic]
+        dev = result.outputs[name]
+        t = log_time / 1e9
+        if result.stopped:
+            result.not_compared += 1
+            continue
+        while key() < log_time:
+            now = key()
+            while next_command < len(commands) and commands[next_command][0] <= now:
+                _, _, holder, value = commands[next_command]
+                holder.take(value)
+                next_command += 1
+            try:
+                sim.advance(steering.value, speed.value)
+            except (ModelValidityError, IntegrationError) as err:
+                result.stopped = str(err)
+                break
+            result.ticks += 1
+            if progress is not None:
+                progress.update(sim.t)
+        if result.stopped:
+            result.not_compared += 1
+            continue
+        if key() != log_time:
+            dev.compared += 1
+            dev.mismatches.append(f"t = {t:.9f} s: {name} recorded between ticks")
+            continue
+        if expected_at != log_time:
+            out = sim.outputs()
+            out.t = offset + sim.t  # the node publishes offset + run time
+            expected, expected_at = output_messages(out, cart_names), log_time
+        compare_message(dev, name, msg, expected[name], t)
+    return result
+
+
+UNITS = {"hitch_poses": "m / quaternion", "cart_velocities": "rad, m/s, N", "traction_power": "W",
+         "applied_steering": "rad"}
+
+
+def report(r: Resimulation) -> str:
+    lines = [f"{r.bag}: scene '{r.scene}', recorded with {r.recorded_method} step {r.recorded_step:g} s; "
+             f"re-simulated {r.ticks} ticks of {r.tick:g} s with {r.method} step {r.step:g} s"]
+    for name, d in r.outputs.items():
+        if not d.compared:
+            lines.append(f"  {name:<17} nothing compared")
+            continue
+        text = "0 (exact)" if d.largest == 0 else f"{d.largest:.3e} ({d.where} at t = {d.t:.3f} s)"
+        lines.append(f"  {name:<17} largest deviation {text}  [{UNITS[name]}], {d.compared} messages")
+        for m in d.mismatches[:5]:
+            lines.append(f"      mismatch: {m}")
+        if len(d.mismatches) > 5:
+            lines.append(f"      ... {len(d.mismatches) - 5} more mismatches")
+    if r.stopped:
+        lines.append(f"  re-simulation stopped: {r.stopped}; {r.not_compared} recorded messages after that "
+                     f"not compared")
+    lines += [f"  note: {n}" for n in r.notes]
+    lines.append("identical" if r.identical else "deviations found")
+    return "\n".join(lines)
+
+
+def resimulate_main(args: argparse.Namespace) -> int:
+    from ..model.loader import SpecError
+
+    progress = None
+    try:
+        progress = Progress(_duration(args.bag))
+        r = resimulate(args.bag, args.method, args.step, progress)
+    except (ResimulationError, BagError, SpecError, OSError) as err:
+        if progress:
+            progress.close()
+        print(f"mta replay: {err}", file=sys.stderr)
+        return EXIT_ERROR
+    progress.close()
+    print(report(r))
+    return 0
+
+
+def _duration(bag: str) -> float:
+    """Span of the bag's messages, s (for the progress bar)."""
+    from mcap.reader import make_reader
+
+    try:
+        with open(bag, "rb") as f:
+            stats = make_reader(f).get_summary().statistics
+            return (stats.message_end_time - stats.message_start_time) / 1e9
+    except Exception:  # the real error is reported by resimulate()
+        return 0.0
