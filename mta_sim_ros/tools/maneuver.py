@@ -1,0 +1,119 @@
+"""``mta maneuver``: a node that plays a scene's steering (and speed) table on sim time, then exits.
+
+It follows /clock: at each simulation instant it publishes the table's value on
+``steering_angle`` (and ``speed_setpoint`` when the scene has a speed table), time counted from
+the first /clock it hears, so it plays the same whether the simulator runs at wall-clock speed or
+faster. ``--maneuver NAME --param k=v`` replaces the scene's steering by a named manoeuvre
+(``mta_sim_ros.maneuvers``: step, ramp, sine, slalom, lane_change, headland_turn, straight).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import signal
+import sys
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
+
+from .. import maneuvers
+from ..model.loader import SpecError, load_scene
+from ..node import QOS, resolve_config_path
+from ..sim import speed_setpoint, table_value
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scene", default="scenes/headland_turn.yaml", help="scene whose steering/speed to play")
+    p.add_argument("--maneuver", help="play this named manoeuvre instead of the scene's steering")
+    p.add_argument("--param", action="append", default=[], metavar="K=V", help="manoeuvre parameter (repeatable)")
+    p.add_argument("--duration", type=float, help="s of sim time to play (default: the scene's duration)")
+
+
+class ManeuverPlayer(Node):
+    def __init__(self, scene, duration: float):
+        super().__init__("mta_maneuver")
+        self.scene, self.duration = scene, duration
+        self.steering = self.create_publisher(Float64, "steering_angle", QOS)
+        self.speed = self.create_publisher(Float64, "speed_setpoint", QOS) if scene.speed else None
+        self.create_subscription(Clock, "/clock", self._on_clock, QOS)
+        self.start: float | None = None
+        self.done = False
+        self.last = (None, None)
+
+    def _on_clock(self, msg: Clock) -> None:
+        now = msg.clock.sec + msg.clock.nanosec * 1e-9
+        if self.start is None:
+            self.start = now
+            self.get_logger().info(f"playing '{self.scene.name}' for {self.duration:g} s from sim time {now:.3f}")
+        t = now - self.start
+        if t > self.duration:
+            self.done = True
+            return
+        steer = table_value(self.scene.steering, t)
+        speed = table_value(self.scene.speed, t) if self.scene.speed else None
+        if (steer, speed) != self.last:  # publish changes only: the simulator holds the last value
+            self.steering.publish(Float64(data=steer))
+            if self.speed is not None:
+                self.speed.publish(Float64(data=speed))
+            self.last = (steer, speed)
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        scene = load_scene(resolve_config_path(args.scene))
+        if args.maneuver:
+            scene = scene_with_maneuver(scene, args.maneuver, parse_params(args.param))
+    except (SpecError, ValueError) as err:
+        print(f"mta maneuver: {err}", file=sys.stderr)
+        return 2
+    return spin_until_done(lambda: ManeuverPlayer(scene, args.duration or scene.duration), args.ros_args)
+
+
+def scene_with_maneuver(scene, name: str, params: dict[str, float]):
+    """The scene steered by the named manoeuvre instead of its own table."""
+    if name not in maneuvers.MANEUVERS:
+        raise ValueError(f"--maneuver: {name!r} must be one of {', '.join(maneuvers.MANEUVERS)}")
+    try:
+        table = maneuvers.expand(name, params, speed_at=lambda t: speed_setpoint(scene, t),
+                                 wheelbase=scene.train.carts[0].length, max_angle=scene.train.actuator.max_angle)
+    except maneuvers.ParamError as err:
+        raise ValueError(f"--param {err.param}: {err.value} must be {err.rule}") from None
+    return dataclasses.replace(scene, steering=table, maneuver=name)
+
+
+def parse_params(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--param: {item!r} must be NAME=NUMBER") from None
+        if not sep:
+            raise ValueError(f"--param: {item!r} must be NAME=NUMBER")
+    return out
+
+
+def spin_until_done(make_node, ros_args: list[str]) -> int:
+    """Spin a node until its ``done`` flag is set or SIGINT/SIGTERM arrives."""
+    rclpy.init(args=["mta", *ros_args], signal_handler_options=SignalHandlerOptions.NO)
+    stop = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: stop.append(signum))
+    node = make_node()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop and not node.done and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        if hasattr(node, "finish"):
+            node.finish()
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
