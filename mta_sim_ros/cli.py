@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 
@@ -35,16 +36,21 @@ def node_main(args: argparse.Namespace) -> int:
     return main(["mta_node", "--ros-args", "--params-file", params, *args.ros_args[1:]])
 
 
+def add_tool(sub, name: str, help: str) -> None:
+    """A subcommand implemented by ``mta_sim_ros.tools.<name>`` (its docstring is the description)."""
+    module = importlib.import_module(f".tools.{name}", __package__)
+    p = sub.add_parser(name, help=help, description=module.__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    module.add_arguments(p)
+    p.set_defaults(func=module.main)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    from .tools import run
 
     parser = argparse.ArgumentParser(prog="mta", description="Multi-element machine-tractor unit simulator (ROS 2).")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    p = sub.add_parser("run", help="simulate a scene offline, as fast as possible, into an MCAP bag",
-                       description=run.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    run.add_arguments(p)
-    p.set_defaults(func=run.main)
+    add_tool(sub, "run", "simulate a scene offline, as fast as possible, into an MCAP bag")
 
     p = sub.add_parser("node", help="the ROS 2 simulator node (as `ros2 run mta_sim_ros sim_node`)",
                        description="Runs the simulator node until SIGINT/SIGTERM. Parameters: config/sim.yaml.")
@@ -52,20 +58,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.epilog = "Further ROS arguments follow --ros-args, e.g. mta node --ros-args -r __ns:=/unit1"
     p.set_defaults(func=node_main)
 
+    add_tool(sub, "maneuver", "a node playing a scene's steering (or a named manoeuvre) on sim time")
+
+    add_tool(sub, "follow", "an example controller node: pure pursuit along a field path")
+
     p = sub.add_parser("recover", help="rebuild a readable bag from one cut short (SIGKILL, power loss)")
     p.add_argument("bag", help="the damaged .mcap")
     p.add_argument("-o", "--output", help="where to write (default: <bag>.recovered.mcap)")
     p.set_defaults(func=recover_main)
 
+    add_tool(sub, "replay", "play a bag back over ROS 2 with its timing, or re-simulate it (--resimulate)")
+
+    add_tool(sub, "analyze", "plots, summary and CSV of one bag, or of several compared")
+
     p = sub.add_parser("check", help="validate train and scene files without running them")
     p.add_argument("files", nargs="+", help="YAML files (config/trains/*.yaml, config/scenes/*.yaml)")
     p.set_defaults(func=check_main)
 
-    from .tools import bench
-    p = sub.add_parser("bench", help="benchmarks: the node in real time (realtime), the integrators (method)",
-                       description=bench.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    bench.add_arguments(p)
-    p.set_defaults(func=bench.main)
+    add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis")
+
+    add_tool(sub, "bench", "benchmarks: the node in real time (realtime), the integrators (method)")
     return parser
 
 
