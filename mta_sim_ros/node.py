@@ -36,6 +36,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from . import __version__, ros_msgs
+from .commands import CommandInput, command_ranges
 from .integrate import METHODS, IntegrationError
 from .model.guards import ModelValidityError
 from .model.loader import SpecError, load_scene
@@ -123,36 +124,6 @@ def descriptor(p: Param) -> ParameterDescriptor:
     return d
 
 
-class CommandInput:
-    """The latest command on one topic, with its wall-clock receipt time and what was wrong."""
-
-    def __init__(self, value: float, low: float, high: float, name: str):
-        self.value, self.low, self.high, self.name = value, low, high, name
-        self.received = time.monotonic()
-        self.count = 0
-        self.rejected = 0
-        self.clamped = 0
-        self.last_problem = ""
-
-    def take(self, x: float) -> float | None:
-        """Validate a received value; returns the value held from now on, or None if rejected."""
-        self.count += 1
-        if not math.isfinite(x):
-            self.rejected += 1
-            self.last_problem = f"{self.name}: {x} is not finite; kept {self.value:.4g}"
-            return None
-        if not self.low <= x <= self.high:
-            self.clamped += 1
-            self.last_problem = f"{self.name}: {x:.4g} outside [{self.low:.4g}, {self.high:.4g}]; clamped"
-            x = min(max(x, self.low), self.high)
-        self.value = x
-        self.received = time.monotonic()
-        return x
-
-    def age(self) -> float:
-        return time.monotonic() - self.received
-
-
 class SimNode(Node):
     def __init__(self, **kwargs):
         super().__init__("mta_sim", **kwargs)
@@ -170,9 +141,9 @@ class SimNode(Node):
         self.sim = Simulation(self.scene, method=self.cfg["integrator_method"] or None,
                               step=self.cfg["integrator_step"] or None, rate=self.cfg["publish_rate"])
         self.cart_names = [c.name for c in self.scene.train.carts]
-        max_angle = self.scene.train.actuator.max_angle
-        self.steering = CommandInput(self.scene.initial.steering, -max_angle, max_angle, "steering_angle")
-        self.speed = CommandInput(self.sim.v_set, -50.0, 50.0, "speed_setpoint")
+        ranges = command_ranges(self.scene)
+        self.steering = CommandInput(self.scene.initial.steering, *ranges["steering_angle"], "steering_angle")
+        self.speed = CommandInput(self.sim.v_set, *ranges["speed_setpoint"], "speed_setpoint")
 
         self.clock_offset = 0.0  # published time = offset + run time; keeps /clock monotonic over resets
         self.paused = False
@@ -326,7 +297,7 @@ class SimNode(Node):
             "train_yaml": Path(self.scene.train.source).read_text(),
             "method": self.sim.method,
             "step": str(self.sim.step),
-            "rate": str(1.0 / self.sim.tick),
+            "rate": str(self.cfg["publish_rate"]),
             "algorithm": "2",
         }
         meta.update({f"param.{k}": str(v) for k, v in self.cfg.items()})

@@ -90,12 +90,15 @@ class Simulation:
         integ = scene.integrator
         self.method = method or integ.method
         self.step = step or integ.step
-        self.stepper = make_stepper(self.method, self.step, integ.rtol, integ.atol)
+        make_stepper(self.method, self.step, integ.rtol, integ.atol)  # a bad method fails here, not at reset
         self.tick = 1.0 / (rate or scene.publish_rate)
         self.reset()
 
     def reset(self) -> None:
-        """Back to the scene's start."""
+        """Back to the scene's start, with a fresh stepper (an adaptive one forgets its last step,
+        so a run after a reset is the same as the first)."""
+        integ = self.scene.integrator
+        self.stepper = make_stepper(self.method, self.step, integ.rtol, integ.atol)
         self.ticks = 0
         self.y = initial_state(self.scene, self.model)
         self.command = self.scene.initial.steering

@@ -273,7 +273,7 @@ FAULTS = [
         "ramp_time", "100", "steering.params", "shorter: the two ramps alone turn",
     ),
     (
-        "scene", both(put("speed", 0.0), put("initial.speed", 0.0), put(f"steering", {"maneuver": "headland_turn"})),
+        "scene", both(put("speed", 0.0), put("initial.speed", 0.0), put("steering", {"maneuver": "headland_turn"})),
         "speed", "0.0", "steering.params", "> 0 (a forward speed) (taken from the scene; give it in params)",
     ),
     ("scene", put("initial.hitch_angles", [0]), "hitch_angles", "[0]", "initial", "a list of 2 angles"),

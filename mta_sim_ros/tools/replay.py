@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..bag import BagError, read_messages, read_metadata
+from ..commands import command_ranges, hold
 from .run import Progress
 
 #: Outputs compared by --resimulate (last name component of the topic).
@@ -52,8 +53,6 @@ OUTPUTS = ("hitch_poses", "cart_velocities", "traction_power", "applied_steering
 COMMANDS = ("steering_angle", "speed_setpoint")
 #: Topics republished under their recorded (global) name; the others move with the namespace.
 GLOBAL_TOPICS = frozenset({"/clock", "/diagnostics", "/tf", "/tf_static", "/rosout", "/parameter_events"})
-#: The node's bounds of a speed set-point, m/s (node.SimNode: CommandInput(..., -50.0, 50.0, ...)).
-SPEED_LIMIT = 50.0
 
 #: At the end, how long the replay waits at most for the subscribers to acknowledge the last messages, s.
 ACK_TIMEOUT = 2.0
@@ -399,18 +398,18 @@ def compare_message(dev: Deviation, name: str, recorded, expected: dict, t: floa
 
 class _Held:
     """A command as the receiver holds it: the node refuses non-finite values and clamps to its
-    range; ``mta run`` takes the values as they are."""
+    range (``commands.hold``); ``mta run`` takes the values as they are (no range)."""
 
-    def __init__(self, value: float, low: float | None = None, high: float | None = None):
-        self.value, self.low, self.high = value, low, high
+    def __init__(self, value: float, limits: tuple[float, float] | None):
+        self.value, self.limits = value, limits
 
     def take(self, x: float) -> None:
-        if self.low is None:
+        if self.limits is None:
             self.value = x
             return
-        if not math.isfinite(x):
-            return
-        self.value = min(max(x, self.low), self.high)
+        value, _ = hold(x, *self.limits)
+        if value is not None:
+            self.value = value
 
 
 def resimulate(bag: str, method: str | None = None, step: float | None = None, progress=None) -> Resimulation:
@@ -460,9 +459,9 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
     result.outputs = {name: Deviation() for name in OUTPUTS if name in topics}
     by_topic = {topic: name for name, topic in topics.items() if name in OUTPUTS}
 
-    max_angle = scene.train.actuator.max_angle
-    steering = _Held(sim.command, *((-max_angle, max_angle) if node_bag else (None, None)))
-    speed = _Held(sim.v_set, *((-SPEED_LIMIT, SPEED_LIMIT) if node_bag else (None, None)))
+    ranges = command_ranges(scene) if node_bag else {}
+    steering = _Held(sim.command, ranges.get("steering_angle"))
+    speed = _Held(sim.v_set, ranges.get("speed_setpoint"))
     commands = []  # (log_time, order, holder, value), in log-time order, ties in recorded order
     for name, holder in (("steering_angle", steering), ("speed_setpoint", speed)):
         if name in topics:
