@@ -23,13 +23,15 @@ COLCON_BASE ?= .
 COLCON_ARGS ?=
 
 SCENE ?= config/scenes/headland_turn.yaml
+# offline target (make offline): the same scene without ROS, as fast as possible
 BAG ?= bags/headland_turn.mcap
 
-.PHONY: venv run node test colcon clean distclean help
+.PHONY: venv run offline node test colcon clean distclean help
 
 help:
 	@echo "make venv     create $(VENV) (Python 3.11) with requirements.txt + pip install -e ."
-	@echo "make run      run the main scene ($(SCENE)) and record $(BAG)"
+	@echo "make run      the main job: node + manoeuvre for $(SCENE), headless; bag in bags/, report in reports/"
+	@echo "make offline  the same scene offline (mta run, no ROS graph) into $(BAG)"
 	@echo "make node     start the simulator node (config/sim.yaml), until Ctrl-C"
 	@echo "make test     run the test suite (pytest)"
 	@echo "make colcon   colcon build into $(COLCON_BASE)/build, install, log"
@@ -46,6 +48,9 @@ $(STAMP): requirements.txt setup.py setup.cfg
 	@touch $@
 
 run: $(STAMP)
+	$(VENV)/bin/mta session --scene $(SCENE) --bag-dir bags --report-dir reports
+
+offline: $(STAMP)
 	@mkdir -p $(dir $(BAG))
 	$(VENV)/bin/mta run --scene $(SCENE) --bag $(BAG)
 
