@@ -148,7 +148,10 @@ class SimNode(Node):
         self.clock_offset = 0.0  # published time = offset + run time; keeps /clock monotonic over resets
         self.paused = False
         self.halted = ""  # why the model stopped (jackknife...): the node stays up until a reset
-        self.stats = TickStats()
+        self.stats = TickStats()  # wall time of each tick's work
+        # the tick thread's CPU time over the same work: wall >> CPU means the thread was preempted
+        # (other processes on the core), not that the tick's code was slow
+        self.cpu_stats = TickStats()
         self.run_started = time.monotonic()
         self.ticks_since_markers = 0
         self.marker_every = max(1, round(self.cfg["publish_rate"] / self.cfg["marker_rate"]))
@@ -199,7 +202,7 @@ class SimNode(Node):
     def _on_tick(self) -> None:
         if self.paused or self.halted:
             return
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.thread_time()
         command = self.steering.value
         timeout = self.cfg["watchdog_timeout"]
         if timeout > 0 and self.steering.age() > timeout and self.cfg["watchdog_action"] == "straight":
@@ -219,13 +222,18 @@ class SimNode(Node):
             self.ticks_since_markers = 0
             msgs["markers"] = ros_msgs.train_markers(out, self.scene.train, self.cfg["frame_id"])
         for topic, msg in msgs.items():
-            self.pubs[topic].publish(msg)
-            self._record(topic, msg)
+            data = serialize_message(msg)  # once: the same bytes go to DDS and to the bag
+            self.pubs[topic].publish(data)
+            self._record(topic, data)
+        cpu = time.thread_time() - cpu_started
         self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
+        self.cpu_stats.record(cpu)
 
     def _record(self, topic: str, msg) -> None:
+        """Log a message (or its CDR bytes) at the current simulation time."""
         if self.recorder is not None and self.recorder.recording:
-            self.recorder.write(qualified(topic, self.get_namespace()), serialize_message(msg), round(self.now * 1e9))
+            data = msg if isinstance(msg, bytes) else serialize_message(msg)
+            self.recorder.write(qualified(topic, self.get_namespace()), data, round(self.now * 1e9))
             if self.recorder.error:
                 self.get_logger().error(self.recorder.error)
 
@@ -245,7 +253,10 @@ class SimNode(Node):
     def _on_reset(self, request, response):
         if self.recorder is not None:
             self.recorder.close(self.run_figures())  # this run's bag, with its figures
-        self.stats = TickStats()
+        self.stats = TickStats()  # wall time of each tick's work
+        # the tick thread's CPU time over the same work: wall >> CPU means the thread was preempted
+        # (other processes on the core), not that the tick's code was slow
+        self.cpu_stats = TickStats()
         self.run_started = time.monotonic()
         self.clock_offset = self.now
         self.sim.reset()
@@ -329,6 +340,7 @@ class SimNode(Node):
             "tick_compute_p50_ms": self.stats.window_percentile(50) * 1e3,
             "tick_compute_p99_ms": self.stats.window_percentile(99) * 1e3,
             "tick_compute_max_ms": self.stats.window_max * 1e3,
+            "tick_cpu_p99_ms": self.cpu_stats.window_percentile(99) * 1e3,
             "deadline_misses": self.stats.deadline_misses,
             "tick_period_ms": self.period * 1e3,
             "steering_command_age_s": self.steering.age(),
@@ -354,6 +366,8 @@ class SimNode(Node):
     def run_figures(self) -> dict[str, str]:
         """Whole-run tick compute statistics (s) and deadline misses, as strings."""
         figures = {f"tick_{k}": repr(v) for k, v in self.stats.summary().items() if not k.startswith("window")}
+        figures.update({f"tick_cpu_{k}": repr(v) for k, v in self.cpu_stats.summary().items()
+                        if k in ("p50", "p99", "p99.9", "max")})
         figures.update(sim_time=repr(self.now), tick_period=repr(self.period),
                        run_sim_time=repr(self.sim.t), run_wall_time=repr(time.monotonic() - self.run_started))
         return figures
@@ -365,7 +379,8 @@ class SimNode(Node):
             self.get_logger().info(
                 f"{s['count']} ticks: compute p50 {s['p50'] * 1e3:.3f} ms, p99 {s['p99'] * 1e3:.3f} ms, "
                 f"p99.9 {s['p99.9'] * 1e3:.3f} ms, max {s['max'] * 1e3:.3f} ms; "
-                f"{s['deadline_misses']} deadline misses (tick period {self.period * 1e3:.2f} ms)")
+                f"{s['deadline_misses']} deadline misses (tick period {self.period * 1e3:.2f} ms); "
+                f"thread CPU p99.9 {self.cpu_stats.percentile(99.9) * 1e3:.3f} ms")
         if self.recorder is not None:
             self.recorder.close(self.run_figures())
 

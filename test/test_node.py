@@ -18,9 +18,11 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from mta_sim_ros.bag import DEFAULT_CHUNK_SIZE
+from mta_sim_ros.bag import read_metadata
 from mta_sim_ros.bag import summary as bag_summary
 from mta_sim_ros.model.loader import load_scene
 from mta_sim_ros.sim import Simulation
+from mta_sim_ros.timing import TickStats
 
 from dds import REPO, Probe, start_node, start_python, stop, write_params
 
@@ -178,6 +180,14 @@ def test_a_stop_signal_leaves_a_complete_bag(tmp_path, probe, sig):
     [bag] = bags_in(tmp_path / "bags")
     data = read_bag(bag)  # needs the summary and footer: a finished file
     assert len(data["/hitch_poses"]) >= 20
+    # the closing record: one tick per published pose; a thread's CPU time within a tick cannot
+    # exceed the tick's wall time, so neither can any percentile of it (each estimate is within
+    # TickStats.relative_error of the exact one: the two may differ by twice that)
+    run = {k: float(v) for k, v in read_metadata(bag)["mta_sim_ros.run"].items()}
+    assert run["tick_count"] == len(data["/hitch_poses"])
+    err = TickStats().relative_error
+    for q in ("p50", "p99", "max"):
+        assert 0 < run[f"tick_cpu_{q}"] <= run[f"tick_{q}"] * (1 + err) / (1 - err) + 1e-6
 
 
 def test_sigkill_then_recover_keeps_all_but_the_last_chunk(tmp_path, probe):

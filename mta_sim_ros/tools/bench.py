@@ -444,6 +444,10 @@ def realtime_main(args: argparse.Namespace) -> int:
         if f"tick_{key}" in f:
             v = f[f"tick_{key}"]
             rows.append((f"tick compute {label}", f"{v * 1e3:.3f} ms", f"{100 * v / tick:.1f} % of the tick"))
+    for key in ("p50", "p99", "p99.9", "max"):  # the same ticks, the tick thread's CPU time only
+        if f"tick_cpu_{key}" in f:
+            v = f[f"tick_cpu_{key}"]
+            rows.append((f"tick thread CPU time {key}", f"{v * 1e3:.3f} ms", f"{100 * v / tick:.1f} % of the tick"))
     rows += [
         ("deadline misses (compute > tick period)", f"{misses}",
          f"tick period {f.get('tick_period', math.nan) * 1e3:.2f} ms"),
