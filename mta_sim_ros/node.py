@@ -43,7 +43,7 @@ from .model.loader import SpecError, load_scene
 from .recorder import RunRecorder
 from .sim import Simulation
 from .timing import TickStats
-from .topics import TOPICS, qualified
+from .topics import TOPICS, WATCHDOG_TOPIC, WATCHDOG_TYPE, qualified
 
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.VOLATILE)
@@ -106,6 +106,9 @@ PARAMS = (
     Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
     Param("record", True, "write every run to an MCAP bag", live=False),
     Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),
+    Param("fidelity", "", "model level: '' = the scene's (auto: the cheapest meeting its needs), or auto, "
+          "kinematic, dynamic, slip; a change applies at the next reset", live=True,
+          choices=("", "auto", "kinematic", "dynamic", "slip")),
 )
 
 
@@ -138,8 +141,10 @@ class SimNode(Node):
             self.scene = load_scene(resolve_config_path(self.cfg["scene_file"]))
         except SpecError as err:
             raise ConfigError(f"parameter scene_file: {err}") from None
-        self.sim = Simulation(self.scene, method=self.cfg["integrator_method"] or None,
-                              step=self.cfg["integrator_step"] or None, rate=self.cfg["publish_rate"])
+        try:
+            self.sim = self._simulation()
+        except ValueError as err:  # a level this train cannot run (kinematic without a commanded speed)
+            raise ConfigError(f"parameter fidelity: {err}") from None
         self.cart_names = [c.name for c in self.scene.train.carts]
         ranges = command_ranges(self.scene)
         self.steering = CommandInput(self.scene.initial.steering, *ranges["steering_angle"], "steering_angle")
@@ -147,6 +152,7 @@ class SimNode(Node):
 
         self.clock_offset = 0.0  # published time = offset + run time; keeps /clock monotonic over resets
         self.paused = False
+        self.watchdog_straight = False  # steering 0 held in place of a stale command
         self.halted = ""  # why the model stopped (jackknife...): the node stays up until a reset
         self.stats = TickStats()  # wall time of each tick's work
         # the tick thread's CPU time over the same work: wall >> CPU means the thread was preempted
@@ -174,6 +180,7 @@ class SimNode(Node):
             topics = {qualified(t, self.get_namespace()): ty for t, ty in TOPICS.items()}
             topics[qualified("markers", self.get_namespace())] = MARKERS_TYPE
             topics["/diagnostics"] = DIAGNOSTICS_TYPE
+            topics[qualified(WATCHDOG_TOPIC, self.get_namespace())] = WATCHDOG_TYPE
             self.recorder = RunRecorder(self.cfg["bag_dir"], topics, self._run_metadata())
             self._start_bag()
 
@@ -183,7 +190,15 @@ class SimNode(Node):
         self.create_timer(1.0, self._publish_diagnostics, clock=self.steady)
         self.get_logger().info(
             f"scene '{self.scene.name}', {len(self.cart_names)} carts, {self.sim.method} step {self.sim.step:g} s, "
-            f"tick {self.sim.tick:g} s, real-time factor {self.cfg['real_time_factor']:g}")
+            f"tick {self.sim.tick:g} s, real-time factor {self.cfg['real_time_factor']:g}; "
+            f"fidelity {self.sim.choice.reason}")
+
+    def _simulation(self) -> Simulation:
+        """A Simulation of the scene with the node's integrator and fidelity parameters."""
+        self.sim_fidelity = self.cfg["fidelity"] or None  # what the running level was built from
+        return Simulation(self.scene, method=self.cfg["integrator_method"] or None,
+                          step=self.cfg["integrator_step"] or None, rate=self.cfg["publish_rate"],
+                          fidelity=self.cfg["fidelity"] or None)
 
     # -- timing ----------------------------------------------------------------------------
     @property
@@ -203,10 +218,7 @@ class SimNode(Node):
         if self.paused or self.halted:
             return
         started, cpu_started = time.perf_counter(), time.thread_time()
-        command = self.steering.value
-        timeout = self.cfg["watchdog_timeout"]
-        if timeout > 0 and self.steering.age() > timeout and self.cfg["watchdog_action"] == "straight":
-            command = 0.0
+        command = self._held_steering()
         try:
             self.sim.advance(command, self.speed.value)
         except (ModelValidityError, IntegrationError) as err:
@@ -228,6 +240,16 @@ class SimNode(Node):
         cpu = time.thread_time() - cpu_started
         self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
         self.cpu_stats.record(cpu)
+
+    def _held_steering(self) -> float:
+        """The steering command for this tick: the latest one, or 0 (straight) while the watchdog
+        replaces a stale one. Each change of who decides is recorded (WATCHDOG_TOPIC)."""
+        timeout = self.cfg["watchdog_timeout"]
+        straight = timeout > 0 and self.steering.age() > timeout and self.cfg["watchdog_action"] == "straight"
+        if straight != self.watchdog_straight:
+            self.watchdog_straight = straight
+            self._record(WATCHDOG_TOPIC, Float64(data=0.0 if straight else self.steering.value))
+        return 0.0 if straight else self.steering.value
 
     def _record(self, topic: str, msg) -> None:
         """Log a message (or its CDR bytes) at the current simulation time."""
@@ -253,12 +275,15 @@ class SimNode(Node):
     def _on_reset(self, request, response):
         if self.recorder is not None:
             self.recorder.close(self.run_figures())  # this run's bag, with its figures
-        self.stats = TickStats()  # wall time of each tick's work
-        # the tick thread's CPU time over the same work: wall >> CPU means the thread was preempted
-        # (other processes on the core), not that the tick's code was slow
-        self.cpu_stats = TickStats()
+        self.stats, self.cpu_stats = TickStats(), TickStats()
+        self.watchdog_straight = False  # so that the new bag records it again if it still holds
         self.run_started = time.monotonic()
         self.clock_offset = self.now
+        if (self.cfg["fidelity"] or None) != self.sim_fidelity:  # the level changes only here
+            self.sim = self._simulation()
+            if self.recorder is not None:
+                self.recorder.metadata.update(self._run_metadata())
+            self.get_logger().info(f"fidelity {self.sim.choice.reason}")
         self.sim.reset()
         self.steering.value = self.scene.initial.steering
         self.speed.value = self.sim.v_set
@@ -291,6 +316,12 @@ class SimNode(Node):
             if spec.choices and param.value not in spec.choices:
                 return SetParametersResult(successful=False,
                                            reason=f"{param.name}: {param.value!r} must be one of {spec.choices}")
+            if param.name == "fidelity":
+                try:
+                    Simulation(self.scene, rate=self.cfg["publish_rate"], fidelity=param.value or None)
+                except ValueError as err:
+                    return SetParametersResult(successful=False, reason=f"fidelity: {err}")
+                self.get_logger().info(f"fidelity {param.value or 'of the scene'}: applies at the next reset")
         for param in params:
             if param.name in self.cfg:
                 self.cfg[param.name] = param.value
@@ -310,6 +341,8 @@ class SimNode(Node):
             "step": str(self.sim.step),
             "rate": str(self.cfg["publish_rate"]),
             "algorithm": "2",
+            "fidelity": self.sim.level,
+            "fidelity_reason": self.sim.choice.reason,
         }
         meta.update({f"param.{k}": str(v) for k, v in self.cfg.items()})
         return meta
@@ -348,6 +381,9 @@ class SimNode(Node):
             "steering_rejected": self.steering.rejected,
             "steering_clamped": self.steering.clamped,
             "jackknife_margin_deg": math.degrees(margin),
+            "fidelity": self.sim.level,
+            "fidelity_reason": self.sim.choice.reason,
+            "fidelity_at_next_reset": self.cfg["fidelity"] or "the scene's",
             "paused": self.paused,
             "bag": str(self.recorder.path) if self.recorder and self.recorder.recording else "",
         }

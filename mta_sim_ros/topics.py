@@ -33,6 +33,12 @@ TOPICS = {
 # The inputs of the simulator (the node subscribes to these; the others it publishes).
 COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
 
+# Bag only (the node records it, never publishes it): the steering command the node holds from
+# this tick on because its command watchdog took over (0.0 when a stale command is replaced by
+# 'straight') or gave back (the last received command), so a re-simulation holds what the node held.
+WATCHDOG_TOPIC = "steering_watchdog"
+WATCHDOG_TYPE = "std_msgs/msg/Float64"
+
 
 def qualified(topic: str, namespace: str = "/") -> str:
     """Fully qualified name of a relative topic in ``namespace``."""

@@ -23,6 +23,7 @@ from mta_sim_ros.bag import summary as bag_summary
 from mta_sim_ros.model.loader import load_scene
 from mta_sim_ros.sim import Simulation
 from mta_sim_ros.timing import TickStats
+from mta_sim_ros.tools.replay import resimulate as resimulate_bag
 
 from dds import REPO, Probe, start_node, start_python, stop, write_params
 
@@ -311,6 +312,14 @@ def test_stale_steering_command_triggers_the_watchdog(tmp_path, probe, action):
             assert applied[-1].data == pytest.approx(0.3, abs=1e-3)
     finally:
         assert stop(node) == 0
+    # the bag says when the watchdog took over, so the run re-simulates exactly from it alone
+    [bag] = bags_in(tmp_path / "bags")
+    takeovers = [m.data for _, m in read_bag(bag).get("/steering_watchdog", [])]
+    if action == "straight":  # (straight before the first command came, back to 0.3 with it,) straight again
+        assert takeovers in ([0.0], [0.0, 0.3, 0.0])
+    else:
+        assert takeovers == []
+    assert resimulate_bag(str(bag)).identical
 
 
 def _limit_file_size():

@@ -45,12 +45,13 @@ from pathlib import Path
 
 from ..bag import BagError, read_messages, read_metadata
 from ..commands import command_ranges, hold
+from ..topics import WATCHDOG_TOPIC
 from .run import Progress
 
 #: Outputs compared by --resimulate (last name component of the topic).
 OUTPUTS = ("hitch_poses", "cart_velocities", "traction_power", "applied_steering")
 #: Commands fed into the re-simulation.
-COMMANDS = ("steering_angle", "speed_setpoint")
+COMMANDS = ("steering_angle", "speed_setpoint", WATCHDOG_TOPIC)
 #: Topics republished under their recorded (global) name; the others move with the namespace.
 GLOBAL_TOPICS = frozenset({"/clock", "/diagnostics", "/tf", "/tf_static", "/rosout", "/parameter_events"})
 
@@ -440,16 +441,11 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
         scene = rebuild_scene(meta, workdir)
     try:
         sim = Simulation(scene, method=method or recorded_method, step=step or recorded_step, rate=rate,
-                         algorithm=algorithm)
+                         algorithm=algorithm, fidelity=meta.get("fidelity"))  # the recorded level
     except ValueError as err:
         raise ResimulationError(str(err)) from None
     result = Resimulation(bag=bag, scene=scene.name, method=sim.method, step=sim.step, tick=sim.tick,
                           recorded_method=recorded_method, recorded_step=recorded_step)
-    if node_bag and meta.get("param.watchdog_action") == "straight" and meta.get(
-            "param.watchdog_timeout", "0") not in ("0", "0.0"):
-        result.notes.append("the node ran with watchdog_action 'straight': a command it dropped as stale is "
-                            "not in the bag, so ticks after one may differ")
-
     topics = _topics_by_name(bag, OUTPUTS + COMMANDS)
     missing = [n for n in OUTPUTS if n not in topics]
     if len(missing) == len(OUTPUTS):
@@ -463,7 +459,8 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
     steering = _Held(sim.command, ranges.get("steering_angle"))
     speed = _Held(sim.v_set, ranges.get("speed_setpoint"))
     commands = []  # (log_time, order, holder, value), in log-time order, ties in recorded order
-    for name, holder in (("steering_angle", steering), ("speed_setpoint", speed)):
+    # the watchdog's record is the steering the node held from then on (see topics.WATCHDOG_TOPIC)
+    for name, holder in (("steering_angle", steering), ("speed_setpoint", speed), (WATCHDOG_TOPIC, steering)):
         if name in topics:
             commands += [(lt, i, holder, float(m.data)) for i, (_, lt, m) in
                          enumerate(read_messages(bag, [topics[name]]))]
