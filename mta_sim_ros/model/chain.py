@@ -18,7 +18,10 @@ exact derivative of the line above it, with th'_j = kapT_j V and psi_1' = the ac
 No finite differences.
 
 Plain ``math`` on Python floats: for the handful of carts of a real train this is several times
-faster than numpy, and it is the hot path of every integrator step.
+faster than numpy, and the recursion is sequential (cart k+1 needs psi_k), so numpy could not
+vectorize it anyway. O(n) per call: ten lists of n floats, about 0.7 us per cart (CPython 3.11).
+The integrators' hot path, ``Model.rhs``, runs this same recursion fused with the sums of the
+dynamics in one pass (``dynamics.Model._rhs_direct``) and is held equal to it bit for bit.
 """
 from __future__ import annotations
 
