@@ -8,14 +8,17 @@ command sequence, and a run is deterministic.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from .fidelity import Choice, choose, make_model
 from .integrate import IntegrationError, make_stepper
+from .integrate.stability import UnstableStepError, stable_step
 from .model.dynamics import Model
 from .model.geometry import cart_points, hitch_angles
-from .model.guards import ModelValidityError, check_state, jackknife_margin
+from .model.guards import ModelValidityError, check_state, fast_modes, jackknife_margin
 from .model.spec import Scene, Table
 
 
@@ -73,6 +76,15 @@ def initial_state(scene: Scene, model: Model) -> np.ndarray:
     return y
 
 
+def start_state(scene: Scene, model) -> np.ndarray:
+    """The state at t = 0 for a model of any fidelity level: the dynamic level's initial_state,
+    converted by the level's from_dynamic_state (kinematic: V' = 0; slip: u = G V, no slip yet)."""
+    convert = getattr(model, "from_dynamic_state", None)
+    if convert is None:
+        return initial_state(scene, model)
+    return convert(initial_state(scene, model.dynamic))
+
+
 def speed_setpoint(scene: Scene, t: float) -> float:
     """The scene's speed set-point at t, or the traction law's default."""
     if scene.speed is None:
@@ -84,23 +96,47 @@ class Simulation:
     """One train in one scene, advanced tick by tick with held inputs."""
 
     def __init__(self, scene: Scene, method: str | None = None, step: float | None = None,
-                 rate: float | None = None, algorithm: int = 2):
+                 rate: float | None = None, algorithm: int = 2, substep: bool = True,
+                 fidelity: str | None = None):
+        """A fixed step past its method's stability limit for a fast mode of the model (e.g. rk4
+        with step > 2.785 x the steering actuator's time constant) would give growing garbage:
+        with ``substep`` the stepper then takes shorter steps and ``stability_note`` (also warned)
+        says why; without it, UnstableStepError."""
         self.scene = scene
-        self.model = Model(scene.train, algorithm=algorithm)
+        # Fidelity level (fidelity.py): ``fidelity`` forces one (kinematic, dynamic, slip); None =
+        # the scene's, and for ``auto`` the cheapest that meets the scene's needs. The slip level
+        # integrates with slip.DEFAULT_METHOD unless a method is given here (its tyres are stiff).
+        self.choice: Choice = choose(scene, forced=fidelity)
+        self.level = self.choice.level
+        self.model = make_model(self.level, scene.train, algorithm)
+        self._begin_tick = getattr(self.model, "begin_tick", None)  # kinematic: the speed ramp of a tick
         integ = scene.integrator
+        self.rtol, self.atol = integ.rtol, integ.atol
+        if self.level == "slip":  # the scene's method and tolerances are for the no-slip levels
+            from .model import slip
+
+            self.rtol, self.atol = slip.DEFAULT_RTOL, slip.DEFAULT_ATOL
+            if method is None:
+                method, step = slip.DEFAULT_METHOD, step or 1.0 / (rate or scene.publish_rate)
         self.method = method or integ.method
         self.step = step or integ.step
-        make_stepper(self.method, self.step, integ.rtol, integ.atol)  # a bad method fails here, not at reset
+        make_stepper(self.method, self.step, self.rtol, self.atol)  # a bad method fails here, not at reset
         self.tick = 1.0 / (rate or scene.publish_rate)
+        self.stepper_step, self.stability_note = stable_step(self.method, self.step, self.tick,
+                                                             fast_modes(scene.train))
+        if self.stability_note:
+            if not substep:
+                raise UnstableStepError(self.stability_note.replace(
+                    "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
+            warnings.warn(self.stability_note, RuntimeWarning, stacklevel=2)
         self.reset()
 
     def reset(self) -> None:
         """Back to the scene's start, with a fresh stepper (an adaptive one forgets its last step,
         so a run after a reset is the same as the first)."""
-        integ = self.scene.integrator
-        self.stepper = make_stepper(self.method, self.step, integ.rtol, integ.atol)
+        self.stepper = make_stepper(self.method, self.stepper_step, self.rtol, self.atol)
         self.ticks = 0
-        self.y = initial_state(self.scene, self.model)
+        self.y = start_state(self.scene, self.model)
         self.command = self.scene.initial.steering
         self.v_set = speed_setpoint(self.scene, 0.0)
 
@@ -121,7 +157,8 @@ class Simulation:
         def f(t, y):
             return model.rhs(t, y, command, v_set)
 
-        y1 = self.stepper.advance(f, t0, self.y, t0 + self.tick)
+        y0 = self.y if self._begin_tick is None else self._begin_tick(self.y, v_set, self.tick)
+        y1 = self.stepper.advance(f, t0, y0, t0 + self.tick)
         check_state(model, t0 + self.tick, y1)
         self.y = y1
         self.ticks += 1
@@ -133,6 +170,11 @@ class Simulation:
 
 
 def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_set: float) -> Outputs:
+    """Outputs of a no-slip state (dynamic level, or kinematic with its inverse dynamics); a level
+    with its own state layout (slip) reports through its own ``outputs``."""
+    own = getattr(model, "outputs", None)
+    if own is not None:
+        return own(t, y, command, v_set)
     L = model.layout
     tm = model.terms(y, command, v_set)
     ch = tm.chain
@@ -140,12 +182,13 @@ def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_se
     heading = y[L.heading]
     pts = cart_points(model.train, float(y[L.x]), float(y[L.y]), heading)
     axle_speed = np.array(ch.kapB) * V
-    resistance_power = float(np.dot(tm.resistance, axle_speed))
+    resistance = np.array(tm.resistance)
+    resistance_power = float(np.dot(resistance, axle_speed))
     return Outputs(
         t=t,
         front=pts["A"], axle=pts["B"], com=pts["C"], rear_hitch=pts["rear_hitch"],
         heading=np.array(heading, dtype=float),
-        hitch_angle=np.array(hitch_angles(list(heading))),
+        hitch_angle=np.array(hitch_angles(heading.tolist())),
         psi=np.array(ch.psi),
         com_speed=np.array(ch.kapC) * V,
         axle_speed=axle_speed,
@@ -154,7 +197,7 @@ def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_se
         steering=float(y[L.steering]),
         command=command,
         speed_setpoint=v_set,
-        resistance=np.array(tm.resistance),
+        resistance=resistance,
         traction=tm.traction,
         power=tm.traction * V,
         resistance_power=resistance_power,

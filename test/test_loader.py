@@ -129,14 +129,20 @@ def steady_circle(train: spec.Train, psi1: float) -> list[tuple[float, float]]:
 @pytest.mark.parametrize("path", SCENE_FILES, ids=lambda p: p.name)
 def test_shipped_scene_steering_has_a_steady_circle_with_margin(path):
     """At the scene's largest steering the steady circle exists (R_A{k+1} > 1.3 l_{k+1}) and
-    every steady hitch angle stays below 75 % of that coupling's limit: no jackknife."""
+    every steady hitch angle stays below 75 % of that coupling's limit: no jackknife. A scene
+    built to sit near the limit (NEAR_LIMIT) must still have its circle and stay below the limit."""
     scene = loader.load_scene(path)
     psi1 = max(abs(v) for v in scene.steering.value)
     if psi1 == 0:
         return
+    circle, share = (1.0, 1.0) if path.name in NEAR_LIMIT else (1.3, 0.75)
     for (r_a, hitch), cart in zip(steady_circle(scene.train, psi1), scene.train.carts[1:]):
-        assert r_a > 1.3 * cart.length
-        assert hitch < 0.75 * cart.max_hitch_angle
+        assert r_a > circle * cart.length
+        assert hitch < share * cart.max_hitch_angle
+
+
+#: Scenes meant to turn about as tight as the train can (benchmarks of where methods fail).
+NEAR_LIMIT = {"tight_turn.yaml"}
 
 
 def test_headland_turn_is_the_main_scene_and_a_u_turn():
@@ -297,6 +303,11 @@ FAULTS = [
     ids=[f"{i:02d}-{row[0]}-{row[2]}" for i, row in enumerate(FAULTS)],
 )
 def test_fault_message(tmp_path, target, mutate, field, value, where, rule):
+    check_fault(tmp_path, target, mutate, field, value, where, rule)
+
+
+def check_fault(tmp_path, target, mutate, field, value, where, rule):
+    """The mutated train or scene file is refused with the one-line message naming them."""
     train, scene = copy.deepcopy(TRAIN), copy.deepcopy(SCENE)
     mutate(train if target == "train" else scene)
     train_path, scene_path = write_pair(tmp_path, train, scene)

@@ -77,3 +77,24 @@ def steady_turn_note(train, steering: float) -> str:
     except SteadyStateError as err:
         return f"; no steady turn exists at this steering: {err}"
     return ""
+
+
+def fast_modes(train) -> list[tuple[float, str]]:
+    """The model's fast decaying modes that hold everywhere along a run: (rate r, 1/s; what it is).
+
+    Each is a pole -r of a linear part of the equations (``integrate.stability`` turns them into
+    step limits): the steering actuator's lag 1/time_constant; the prescribed-speed lag
+    1/response_time; the governor's proportional loop kp / sum m_k (the mass on a straight line)
+    and its anti-windup 1/windup_time. Not included: the resistance smoothing through V = 0,
+    (sum F_Bk) / (M smoothing_speed), which is fast only while |V| is within a few smoothing
+    speeds of zero."""
+    act = train.actuator
+    modes = [(1.0 / act.time_constant, f"the steering actuator (time constant {act.time_constant:g} s)")]
+    tr = train.traction
+    if tr.law == "prescribed_speed":
+        modes.append((1.0 / tr.response_time, f"the prescribed-speed lag (response_time {tr.response_time:g} s)"))
+    elif tr.law == "governor":
+        mass = sum(c.mass for c in train.carts)
+        modes.append((tr.kp / mass, f"the speed governor (kp / mass = {tr.kp:g} / {mass:g})"))
+        modes.append((1.0 / tr.windup_time, f"the governor's anti-windup (windup_time {tr.windup_time:g} s)"))
+    return modes

@@ -267,7 +267,8 @@ class _Section:
 
 # --------------------------------------------------------------------------- trains
 
-CART_FIELDS = ("name", "length", "hitch_offset", "com_offset", "mass", "yaw_inertia", "max_hitch_angle")
+CART_FIELDS = ("name", "length", "hitch_offset", "com_offset", "mass", "yaw_inertia", "max_hitch_angle",
+               "cornering_stiffness")
 HITCH_ANGLE = Rule("in (0, pi]", lambda x: 0 < x <= math.pi)
 
 
@@ -281,6 +282,7 @@ def _cart(s: _Section) -> spec.Cart:
         mass=s.number("mass", POSITIVE),
         yaw_inertia=s.number("yaw_inertia", POSITIVE),
         max_hitch_angle=s.number("max_hitch_angle", HITCH_ANGLE, spec.Cart.max_hitch_angle),
+        cornering_stiffness=s.number("cornering_stiffness", POSITIVE, None),
     )
 
 
@@ -510,7 +512,21 @@ def _steering(top: _Section, train: spec.Train, speed_at: Callable[[float], floa
     return table, name
 
 
-SCENE_FIELDS = ("name", "train", "duration", "initial", "steering", "speed", "integrator", "publish_rate")
+SCENE_FIELDS = ("name", "train", "duration", "initial", "steering", "speed", "integrator", "publish_rate",
+                "fidelity", "needs")
+FIDELITY_CHOICES = ("auto",) + spec.FIDELITY_LEVELS
+NEEDS_FIELDS = tuple(spec.Needs.__dataclass_fields__)
+
+
+def _needs(top: _Section) -> Optional[spec.Needs]:
+    """What the scene needs: {OUTPUT: tolerance > 0} for outputs among spec.Needs' fields; at
+    least one (an empty mapping says nothing: leave ``needs`` out instead)."""
+    if not top.has("needs"):
+        return None
+    s = top.section("needs", NEEDS_FIELDS)
+    if not s.values:
+        top.fail("needs", s.raw, f"a non-empty mapping of OUTPUT: tolerance, OUTPUT one of {', '.join(NEEDS_FIELDS)}")
+    return spec.Needs(**{key: s.number(key, POSITIVE) for key in s.values})
 
 
 def _scene(data: dict, source: str) -> spec.Scene:
@@ -530,6 +546,8 @@ def _scene(data: dict, source: str) -> spec.Scene:
         integrator=_integrator(top, publish_rate),
         publish_rate=publish_rate,
         maneuver=maneuver,
+        fidelity=top.choice("fidelity", FIDELITY_CHOICES, "auto"),
+        needs=_needs(top),
         source=source,
         raw=data,
     )

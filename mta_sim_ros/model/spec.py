@@ -35,6 +35,11 @@ class Cart:
     # Largest |hitch angle| th_{k-1} - th_k the coupling in front of this cart allows, rad.
     # Past it the run stops (jackknife). Unused for the tractor.
     max_hitch_angle: float = math.radians(90.0)
+    # Lateral tyre cornering stiffness C_alpha of each axle of this cart, N/rad: the slip level's
+    # lateral force F = -C_alpha * slip angle (the tractor has two axles, A_1 and B_1, each with this
+    # value; a trailer one, at B_k). None = the estimate of ``model/slip.py``: CORNERING_COEFFICIENT
+    # (per rad) times the static load on that axle. The kinematic and dynamic levels ignore it.
+    cornering_stiffness: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -147,6 +152,30 @@ class Integrator:
     atol: float = 1e-10  # adaptive methods
 
 
+FIDELITY_LEVELS = ("kinematic", "dynamic", "slip")  # cheapest first; see fidelity.py
+
+
+@dataclass(frozen=True)
+class Needs:
+    """What a scene needs from the simulator: the outputs it uses and the error it tolerates in
+    each, against the highest fidelity level (slip). None = that output is not needed.
+
+    poses         m: largest distance between the same axle centre B_k (or A_1) over the run
+    speed         m/s: largest error in V
+    power         relative: RMS error in traction power N = F_A1 V over the RMS of N
+    hitch_angles  rad: largest error in a hitch angle
+    """
+
+    poses: Optional[float] = None
+    speed: Optional[float] = None
+    power: Optional[float] = None
+    hitch_angles: Optional[float] = None
+
+    def asked(self) -> dict:
+        """{output: tolerance} of the outputs needed."""
+        return {k: v for k, v in self.__dict__.items() if v is not None}
+
+
 @dataclass(frozen=True)
 class Scene:
     name: str
@@ -158,5 +187,7 @@ class Scene:
     integrator: Integrator = Integrator()
     publish_rate: float = 50.0  # Hz: the command is sampled and outputs written at this rate
     maneuver: str = ""  # name of the manoeuvre the steering table came from, if any
+    fidelity: str = "auto"  # auto | kinematic | dynamic | slip (fidelity.py chooses for auto)
+    needs: Optional[Needs] = None  # None: not stated (auto then keeps the article's dynamic model)
     source: str = ""  # the file it came from
     raw: dict = field(default_factory=dict, compare=False, hash=False)  # the YAML as read

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..bag import BagError, BagWriter
+from ..fidelity import LEVELS, choose
 from ..model.loader import SpecError, load_scene
 from ..sim import run_scene
 from ..summary import RunSummary
@@ -30,6 +31,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", help="integrator, overrides the scene (euler, heun, rk4, RK45, DOP853, LSODA, Radau, BDF)")
     p.add_argument("--step", type=float, help="integrator step, s, overrides the scene")
     p.add_argument("--rate", type=float, help="publish (tick) rate, Hz, overrides the scene")
+    p.add_argument("--fidelity", choices=("auto",) + LEVELS,
+                   help="model level, overrides the scene's fidelity (auto: the cheapest meeting the scene's needs)")
     p.add_argument("--frame-id", default="map", help="frame of hitch_poses (default: map)")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary on stdout")
 
@@ -78,8 +81,20 @@ def main(args: argparse.Namespace) -> int:
         return 2
     bag_path = Path(args.bag or f"bags/{scene.name}.mcap")
     report_path = Path(args.report) if args.report else bag_path.with_suffix(".md")
-    options = {"method": args.method or scene.integrator.method, "step": args.step or scene.integrator.step,
-               "rate": args.rate or scene.publish_rate, "algorithm": 2}
+    fidelity = getattr(args, "fidelity", None)
+    try:
+        choice = choose(scene, forced=fidelity)
+    except ValueError as err:
+        print(f"mta run: {err}", file=sys.stderr)
+        return 2
+    method = args.method
+    if choice.level == "slip" and not method:
+        from ..model.slip import DEFAULT_METHOD as method  # the slip level's own (its tyres are stiff)
+    step = args.step or (1.0 / (args.rate or scene.publish_rate) if choice.level == "slip" and not args.method
+                         else scene.integrator.step)  # as Simulation takes them
+    options = {"method": method or scene.integrator.method, "step": step,
+               "rate": args.rate or scene.publish_rate, "algorithm": 2,
+               "fidelity": choice.level, "fidelity_reason": choice.reason}
     cart_names = [c.name for c in scene.train.carts]
     tick = 1.0 / options["rate"]
     summary = RunSummary(tuple(cart_names))
@@ -101,7 +116,8 @@ def main(args: argparse.Namespace) -> int:
                 summary.add(out)
                 progress.update(out.t)
 
-            sim, stopped = run_scene(scene, on_output=record, method=args.method, step=args.step, rate=args.rate)
+            sim, stopped = run_scene(scene, on_output=record, method=args.method, step=args.step, rate=args.rate,
+                                     fidelity=choice.level)
     except BagError as err:
         progress.close()
         print(f"mta run: {err}", file=sys.stderr)
@@ -109,6 +125,7 @@ def main(args: argparse.Namespace) -> int:
     progress.close()
     wall = time.perf_counter() - started
     extra = {
+        "fidelity": choice.reason,
         "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations",
         "wall time": f"{wall:.2f} s (x{summary.duration / wall:.0f} real time)" if wall > 0 else "",
         "bag": str(bag_path),

@@ -1,0 +1,59 @@
+"""Linear stability of the fixed-step methods: the largest step that keeps a decaying mode decaying.
+
+A mode y' = -r y (r > 0, a pole of the model at -r 1/s) stepped with step h is multiplied per step
+by the method's stability function R(z) at z = -r h: Euler 1 + z, Heun 1 + z + z^2/2, RK4
+1 + z + z^2/2 + z^3/6 + z^4/24. It decays while |R(-r h)| < 1, i.e. while r h is below the
+method's real-axis stability limit: 2 for Euler and Heun, 2.785 for RK4. Past it the numerical
+solution grows every step whatever the physics does: garbage, not a less accurate answer.
+
+Adaptive solvers need no such limit: the explicit ones (RK45, DOP853) shorten their steps until
+the error estimate (and so the stability) is met; LSODA switches to BDF; Radau and BDF are
+stable for any decaying mode.
+"""
+from __future__ import annotations
+
+import math
+
+# |R(-x)| = 1 for RK4 at the root of 1 - x + x^2/2 - x^3/6 + x^4/24 = -1 near 2.785.
+REAL_AXIS_LIMIT = {"euler": 2.0, "heun": 2.0, "rk4": 2.785293563405282}
+SAFETY = 0.9  # sub-steps are at most this share of the limit: |R| stays clearly below 1
+
+
+class UnstableStepError(ValueError):
+    """A fixed step is past the stability limit of a mode of the model."""
+
+
+def stability_function(method: str, z: complex) -> complex:
+    """R(z): the factor one step of ``method`` applies to y' = lambda y, z = lambda h."""
+    if method == "euler":
+        return 1 + z
+    if method == "heun":
+        return 1 + z + z * z / 2
+    if method == "rk4":
+        return 1 + z + z * z / 2 + z ** 3 / 6 + z ** 4 / 24
+    raise ValueError(f"method: {method!r} has no fixed stability function (one of {tuple(REAL_AXIS_LIMIT)})")
+
+
+def effective_step(step: float, tick: float) -> float:
+    """The step a FixedStep really takes over one tick: the tick split in ceil(tick / step) parts."""
+    return tick / max(1, math.ceil(tick / step - 1e-9))
+
+
+def stable_step(method: str, step: float, tick: float, modes, safety: float = SAFETY):
+    """(step to use, note). ``modes`` is a list of (rate r in 1/s, what it is), e.g. from
+    ``model.guards.fast_modes``. For an adaptive method, or when the effective step keeps every
+    mode inside the stability region, the step is returned unchanged and the note is None.
+    Otherwise the step is cut to ``safety`` x the limit of the fastest mode and the note says why."""
+    if method not in REAL_AXIS_LIMIT or not modes:
+        return step, None
+    rate, what = max(modes)
+    h = effective_step(step, tick)
+    limit = REAL_AXIS_LIMIT[method] / rate
+    if h < safety * limit:
+        return step, None
+    new = safety * limit
+    note = (f"{method} with step {h:.4g} s is unstable for this model: {what} decays at "
+            f"{rate:.4g} 1/s, and {method} is stable only for step < {REAL_AXIS_LIMIT[method]:.4g} / {rate:.4g} 1/s "
+            f"= {limit:.4g} s (its real-axis stability limit); sub-stepping at "
+            f"{effective_step(new, tick):.4g} s ({math.ceil(tick / new - 1e-9)} steps per {tick:.4g} s tick)")
+    return new, note
