@@ -66,6 +66,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     m.add_argument("--out", default="docs/benchmarks/default_method.md", help="Markdown report to write")
     m.set_defaults(bench_func=method_main)
 
+    from . import bench_fidelity  # fidelity levels: error against slip and cost per scene (docs/fidelity.md)
+
+    f = sub.add_parser("fidelity", help="each fidelity level's error against slip and its cost, per scene",
+                       description=bench_fidelity.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    bench_fidelity.add_arguments(f)
+    f.set_defaults(bench_func=bench_fidelity.main)
+
+    from .bench_accuracy import add_stability, add_work_precision  # work-precision, stability
+
+    add_work_precision(sub)
+    add_stability(sub)
+
+    from .bench_scaling import add_scaling  # scaling: carts, publish rate, long runs, memory
+
+    add_scaling(sub)
+
 
 def main(args: argparse.Namespace) -> int:
     return args.bench_func(args)

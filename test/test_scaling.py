@@ -1,0 +1,187 @@
+"""Facts the scaling benchmark (``mta bench scaling``) and the fast right-hand side rely on.
+No timing here: equalities, counts and memory, which do not depend on the machine.
+
+- ``Model.rhs`` (algorithm 2: one fused pass over the carts, ``_rhs_direct``) equals the reference
+  path ``Model.derivative`` (chain.chain + Terms) to the last bit, for any train length and law.
+- Its work is O(n): each transcendental function runs a fixed number of times per cart, and the
+  memory it allocates grows linearly with n and is all released.
+- A run keeps nothing per tick (no history): traced memory does not grow over ticks.
+- The bench's 100-cart train is a valid train: it settles on the closed-form steady circles.
+"""
+from __future__ import annotations
+
+import dataclasses
+import gc
+import math
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from mta_sim_ros.model.dynamics import Model
+from mta_sim_ros.model.steady import steady_circle
+from mta_sim_ros.sim import Simulation, evaluate_outputs, run_scene
+from mta_sim_ros.tools.bench_scaling import bench_scene, default_train, scaled_train, steering_amplitude
+
+import trains
+
+LAWS = {
+    "governor": trains.GOVERNOR,
+    "constant": trains.Traction("constant", force=40000.0),
+    "prescribed_speed": trains.prescribed(3.0),
+}
+
+
+def long_train(n: int, traction=trains.GOVERNOR):
+    """n carts cycling through the test carts (with a draft on the last), as trains.train."""
+    return trains.train(carts=[trains.CARTS[k % len(trains.CARTS)] for k in range(n)], traction=traction)
+
+
+def random_state(model, rng):
+    L = model.layout
+    y = np.zeros(L.size)
+    y[L.x], y[L.y] = rng.normal(0, 10, 2)
+    y[L.heading] = rng.uniform(-math.pi, math.pi) + np.cumsum(rng.uniform(-0.3, 0.3, L.n))
+    y[L.steering] = rng.uniform(-0.5, 0.5)
+    y[L.speed] = rng.uniform(-4, 4)
+    y[L.governor] = rng.normal(0, 2e4)
+    return y
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 100])
+@pytest.mark.parametrize("law", list(LAWS))
+def test_fused_rhs_equals_the_reference_path_bit_for_bit(n, law):
+    model = Model(long_train(n, LAWS[law]))
+    rng = np.random.default_rng(n)
+    for _ in range(20):
+        y = random_state(model, rng)
+        command, v_set = rng.uniform(-0.6, 0.6), rng.uniform(0, 4)
+        fast = model.rhs(0.0, y, command, v_set)
+        reference, _ = model.derivative(y, command, v_set)
+        assert fast.dtype == reference.dtype and fast.shape == reference.shape
+        np.testing.assert_array_equal(fast, reference)
+        np.testing.assert_array_equal(model.rhs(0.0, list(y), command, v_set), reference)  # a list works too
+
+
+def test_algorithm_1_still_goes_through_the_reference_path():
+    tr = long_train(4)
+    y = random_state(Model(tr), np.random.default_rng(0))
+    a1, a2 = Model(tr, algorithm=1), Model(tr, algorithm=2)
+    np.testing.assert_allclose(a1.rhs(0.0, y, 0.1, 3.0), a2.rhs(0.0, y, 0.1, 3.0), rtol=1e-9, atol=1e-9)
+
+
+def test_rhs_work_is_linear_in_the_carts(monkeypatch):
+    """Per call: sin and cos once per cart plus once for the course, sqrt twice per cart but the
+    last, atan2 once per hitch, tanh once per cart: exactly linear in n."""
+    counts = {}
+
+    def counting(name, fn):
+        def wrapped(*args):
+            counts[name] = counts.get(name, 0) + 1
+            return fn(*args)
+        return wrapped
+
+    for name in ("sin", "cos", "sqrt", "atan2", "tanh"):
+        monkeypatch.setattr(math, name, counting(name, getattr(math, name)))
+    for n in (1, 3, 10, 100):
+        model = Model(long_train(n))
+        y = random_state(model, np.random.default_rng(1))
+        counts.clear()
+        model.rhs(0.0, y, 0.1, 3.0)
+        expected = {"sin": n + 1, "cos": n + 1, "sqrt": 2 * n - 1, "atan2": n - 1, "tanh": n}
+        assert counts == {k: v for k, v in expected.items() if v}, (n, counts)
+
+
+def traced_peak(fn) -> tuple[int, int]:
+    """(peak bytes allocated during fn(), bytes still held after it and its result are dropped)."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        result = fn()
+        peak = tracemalloc.get_traced_memory()[1] - before
+        del result
+        gc.collect()
+        after = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    return peak, after
+
+
+def test_rhs_memory_is_linear_in_the_carts_and_released():
+    peaks = {}
+    for n in (100, 200, 400):
+        model = Model(long_train(n))
+        y = random_state(model, np.random.default_rng(2))
+        model.rhs(0.0, y, 0.1, 3.0)  # warm: nothing lazily built on the first call counts
+        peak, held = traced_peak(lambda: model.rhs(0.0, y, 0.1, 3.0))
+        peaks[n] = peak
+        assert held < 256, f"n = {n}: {held} bytes kept after the call"  # tracemalloc's own few bytes
+    # the same bytes per cart from 100 to 200 as from 200 to 400 (~72 B: the input as a list of
+    # floats, the output list and array); no n^2 term
+    per_cart = (peaks[400] - peaks[200]) / 200
+    assert per_cart == pytest.approx((peaks[200] - peaks[100]) / 100, rel=0.1), peaks
+    assert per_cart < 150, peaks
+
+
+def test_a_run_keeps_no_history():
+    """Traced memory after 1000 more ticks of advance + outputs is what it was after 200: cost per
+    simulated second cannot grow from anything kept per tick."""
+    sim = Simulation(bench_scene(scaled_train(3), 100.0, duration=1e9))
+
+    def ticks(k):
+        for _ in range(k):
+            command, v_set = sim.scheduled_inputs(math.fmod(sim.t, 60.0))
+            sim.advance(command, v_set)
+            sim.outputs()
+
+    ticks(200)
+    gc.collect()
+    tracemalloc.start()
+    try:
+        ticks(200)
+        gc.collect()
+        base = tracemalloc.get_traced_memory()[0]
+        ticks(1000)
+        gc.collect()
+        grown = tracemalloc.get_traced_memory()[0] - base
+    finally:
+        tracemalloc.stop()
+    assert grown < 4096, f"{grown} bytes more after 1000 ticks"
+
+
+def test_the_bench_trains_are_the_default_train_cut_or_lengthened():
+    three, default = scaled_train(3), default_train()
+    assert three.carts == default.carts and three.draft == default.draft
+    assert three.traction.kp == pytest.approx(default.traction.kp)
+    assert three.traction.max_force == pytest.approx(default.traction.max_force)
+    hundred = scaled_train(100)
+    assert hundred.n == 100 and len({c.name for c in hundred.carts}) == 100
+    assert {r.cart for r in hundred.rolling} == {c.name for c in hundred.carts}
+    assert [d.cart for d in hundred.draft] == [d.cart for d in default.draft]
+    assert hundred.carts[0] == default.carts[0] and hundred.carts[-1] == default.carts[-1]
+    # the governor is scaled with the mass: the same time constant kp / M as the default train
+    ratio = sum(c.mass for c in hundred.carts) / sum(c.mass for c in three.carts)
+    assert hundred.traction.kp == pytest.approx(three.traction.kp * ratio)
+    assert steering_amplitude(hundred) > 0.0
+    steady_circle(hundred, 2.0 * steering_amplitude(hundred) * 0.999)  # exists: the amplitude is half the limit
+
+
+def test_the_100_cart_train_settles_on_the_closed_form_circles():
+    """Starting straight, the bench's 100-cart train held at the steering it oscillates to settles
+    on the circles of model.steady.steady_circle: the chain is right at n = 100, not only n <= 5."""
+    tr = dataclasses.replace(scaled_train(100), traction=trains.prescribed(5.0))
+    steering = steering_amplitude(tr)
+    expected = steady_circle(tr, steering)
+    sc = trains.scene(tr, table=((0.0,), (steering,)), duration=8000.0 / 5.0, rate=0.05, method="DOP853",
+                      step=20.0, rtol=1e-11, atol=1e-11, steering=steering)
+    sim, err = run_scene(sc)
+    assert err is None, err
+    out = evaluate_outputs(sim.model, sim.t, sim.y, steering, 5.0)
+    th1 = out.heading[0]
+    centre = out.axle[0] + expected.R_B[0] * np.array([-math.sin(th1), math.cos(th1)])
+    np.testing.assert_allclose(np.hypot(*(out.axle - centre).T), expected.R_B, rtol=1e-6)
+    np.testing.assert_allclose(np.hypot(*(out.front - centre).T), expected.R_A, rtol=1e-6)
+    np.testing.assert_allclose(np.hypot(*(out.com - centre).T), expected.R_C, rtol=1e-6)
+    np.testing.assert_allclose(out.hitch_angle, expected.hitch_angles, rtol=1e-5, atol=1e-9)
