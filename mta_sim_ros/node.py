@@ -163,6 +163,7 @@ class SimNode(Node):
         self.run_started = time.monotonic()
         self.ticks_since_markers = 0
         self.marker_every = max(1, round(self.cfg["publish_rate"] / self.cfg["marker_rate"]))
+        self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])  # redrawn in place
         self.wall_start = time.monotonic()
         self.sim_at_wall_start = 0.0
 
@@ -239,7 +240,9 @@ class SimNode(Node):
         self.ticks_since_markers += 1
         if self.ticks_since_markers >= self.marker_every:
             self.ticks_since_markers = 0
-            msgs["markers"] = ros_msgs.train_markers(out, self.scene.train, self.cfg["frame_id"])
+            if self.markers.frame_id != self.cfg["frame_id"]:  # frame_id changes live
+                self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])
+            msgs["markers"] = self.markers.update(out)
         for topic, msg in msgs.items():
             data = serialize_message(msg)  # once: the same bytes go to DDS and to the bag
             self.pubs[topic].publish(data)

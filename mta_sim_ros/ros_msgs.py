@@ -152,48 +152,75 @@ def train_markers(out, train, frame_id: str = "map") -> MarkerArray:
     the cart's name at the outline's centre. Plus one SPHERE_LIST (ns ``hitches``, id 0) of the
     points A_k, each in its cart's colour.
     """
-    n = len(train.carts)
-    if len(out.front) != n:
-        raise ValueError(f"train_markers: {len(out.front)} carts in the outputs, {n} in train "
-                         f"{train.name!r}")
-    t = out.t
-    widths = cart_widths(train)
-    rear_points = list(out.front[1:]) + [out.rear_hitch]
-    markers = []
-    for k, cart in enumerate(train.carts):
-        ax, ay = (float(v) for v in out.front[k])
-        bx, by = (float(v) for v in out.axle[k])
-        rx, ry = (float(v) for v in rear_points[k])
-        ex, ey = math.cos(out.heading[k]), math.sin(out.heading[k])  # along the axis
-        nx, ny = -ey, ex  # to the cart's left
-        half = widths[k] / 2.0
-        # How far back of A_k the outline reaches (the rear hitch may be ahead of the axle).
-        back = max((ax - bx) * ex + (ay - by) * ey, (ax - rx) * ex + (ay - ry) * ey)
-        tx, ty = ax - back * ex, ay - back * ey  # centre of the outline's rear edge
-        color = _color(k)
+    return TrainMarkers(train, frame_id).update(out)
 
-        outline = _marker(t, frame_id, NS_OUTLINE, k, Marker.LINE_STRIP,
-                          Vector3(x=LINE_WIDTH), color)
-        outline.points = [_point(ax + half * nx, ay + half * ny),
-                          _point(ax - half * nx, ay - half * ny),
-                          _point(tx - half * nx, ty - half * ny),
-                          _point(tx + half * nx, ty + half * ny),
-                          _point(ax + half * nx, ay + half * ny)]
-        axle = _marker(t, frame_id, NS_AXLE, k, Marker.LINE_LIST, Vector3(x=LINE_WIDTH), color)
-        axle.points = [_point(bx + half * nx, by + half * ny),
-                       _point(bx - half * nx, by - half * ny)]
-        label = _marker(t, frame_id, NS_LABEL, k, Marker.TEXT_VIEW_FACING,
-                        Vector3(z=TEXT_HEIGHT), color)
-        label.pose.position = _point((ax + tx) / 2.0, (ay + ty) / 2.0)
-        label.text = cart.name
-        markers += [outline, axle, label]
 
-    hitches = _marker(t, frame_id, NS_HITCHES, 0, Marker.SPHERE_LIST,
-                      Vector3(x=HITCH_DIAMETER, y=HITCH_DIAMETER, z=HITCH_DIAMETER), _color(0))
-    hitches.points = [_point(x, y) for x, y in out.front]
-    hitches.colors = [_color(k) for k in range(n)]
-    markers.append(hitches)
-    return MarkerArray(markers=markers)
+class TrainMarkers:
+    """The MarkerArray of :func:`train_markers`, built once and redrawn in place for each new
+    Outputs: the node's marker tick then only sets coordinates and stamps instead of building
+    3 n + 1 Marker messages (for 100 carts that build alone took ~7 ms of a 10 ms tick).
+    ``update`` returns the same MarkerArray object each time: serialize it before the next call."""
+
+    def __init__(self, train, frame_id: str = "map"):
+        self.train, self.frame_id = train, frame_id
+        self.widths = cart_widths(train)
+        self.outlines, self.axles, self.labels = [], [], []
+        markers = []
+        for k, cart in enumerate(train.carts):
+            color = _color(k)
+            outline = _marker(0.0, frame_id, NS_OUTLINE, k, Marker.LINE_STRIP, Vector3(x=LINE_WIDTH), color)
+            outline.points = [Point() for _ in range(5)]
+            axle = _marker(0.0, frame_id, NS_AXLE, k, Marker.LINE_LIST, Vector3(x=LINE_WIDTH), color)
+            axle.points = [Point(), Point()]
+            label = _marker(0.0, frame_id, NS_LABEL, k, Marker.TEXT_VIEW_FACING, Vector3(z=TEXT_HEIGHT), color)
+            label.text = cart.name
+            self.outlines.append(outline)
+            self.axles.append(axle)
+            self.labels.append(label)
+            markers += [outline, axle, label]
+        n = len(train.carts)
+        self.hitches = _marker(0.0, frame_id, NS_HITCHES, 0, Marker.SPHERE_LIST,
+                               Vector3(x=HITCH_DIAMETER, y=HITCH_DIAMETER, z=HITCH_DIAMETER), _color(0))
+        self.hitches.points = [Point() for _ in range(n)]
+        self.hitches.colors = [_color(k) for k in range(n)]
+        markers.append(self.hitches)
+        self.array = MarkerArray(markers=markers)
+        self.stamps = [m.header.stamp for m in markers]
+
+    def update(self, out) -> MarkerArray:
+        n = len(self.train.carts)
+        if len(out.front) != n:
+            raise ValueError(f"train_markers: {len(out.front)} carts in the outputs, {n} in train "
+                             f"{self.train.name!r}")
+        st = stamp(out.t)
+        for s in self.stamps:
+            s.sec, s.nanosec = st["sec"], st["nanosec"]
+        front, axle_pts, heading = out.front.tolist(), out.axle.tolist(), out.heading.tolist()
+        rear_points = front[1:] + [[float(v) for v in out.rear_hitch]]
+        for k in range(n):
+            ax, ay = front[k]
+            bx, by = axle_pts[k]
+            rx, ry = rear_points[k]
+            ex, ey = math.cos(heading[k]), math.sin(heading[k])  # along the axis
+            nx, ny = -ey, ex  # to the cart's left
+            half = self.widths[k] / 2.0
+            # How far back of A_k the outline reaches (the rear hitch may be ahead of the axle).
+            back = max((ax - bx) * ex + (ay - by) * ey, (ax - rx) * ex + (ay - ry) * ey)
+            tx, ty = ax - back * ex, ay - back * ey  # centre of the outline's rear edge
+            _move(self.outlines[k].points, ((ax + half * nx, ay + half * ny), (ax - half * nx, ay - half * ny),
+                                            (tx - half * nx, ty - half * ny), (tx + half * nx, ty + half * ny),
+                                            (ax + half * nx, ay + half * ny)))
+            _move(self.axles[k].points, ((bx + half * nx, by + half * ny), (bx - half * nx, by - half * ny)))
+            position = self.labels[k].pose.position
+            position.x, position.y = (ax + tx) / 2.0, (ay + ty) / 2.0
+        _move(self.hitches.points, front)
+        return self.array
+
+
+def _move(points: list[Point], xy) -> None:
+    """Set the x, y of existing Points in place (z stays 0)."""
+    for p, (x, y) in zip(points, xy):
+        p.x, p.y = x, y
 
 
 # -- diagnostics ---------------------------------------------------------------

@@ -283,3 +283,16 @@ def test_diagnostics_content():
 def test_diagnostics_refuse_unknown_levels(level):
     with pytest.raises(ValueError, match="diagnostic level"):
         ros_msgs.diagnostic_array(0.0, "x", level, "", {})
+
+
+def test_markers_redrawn_in_place_equal_markers_built_afresh(lane_change):
+    """The node's TrainMarkers reuses one MarkerArray; after any number of updates its bytes are
+    those of a MarkerArray built from scratch for the same outputs."""
+    from rclpy.serialization import serialize_message
+
+    sim, samples = lane_change
+    redrawn = ros_msgs.TrainMarkers(sim.scene.train, "odom")
+    picks = samples[:: max(1, len(samples) // 7)] + [samples[0]]  # along the run, then back to the start
+    for out in picks:
+        assert serialize_message(redrawn.update(out)) == serialize_message(
+            ros_msgs.train_markers(out, sim.scene.train, "odom"))

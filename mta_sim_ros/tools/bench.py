@@ -277,7 +277,7 @@ def instrumented_node_main(argv: list[str]) -> int:
     Simulation.advance = timed("advance", Simulation.advance)
     Simulation.outputs = timed("outputs", Simulation.outputs)
     ros_msgs.output_messages = timed("messages", ros_msgs.output_messages)
-    ros_msgs.train_markers = timed("markers", ros_msgs.train_markers)
+    ros_msgs.TrainMarkers.update = timed("markers", ros_msgs.TrainMarkers.update)
     publish, publish_clock = timed("publish", Publisher.publish), timed("publish_clock", Publisher.publish)
     Publisher.publish = lambda self, msg: (publish_clock if self.topic_name == "/clock" else publish)(self, msg)
     node_module.serialize_message = timed("serialize", node_module.serialize_message)

@@ -158,6 +158,7 @@ class Ticker:
         self.names = [c.name for c in self.train.carts]
         self.marker_every = max(1, round(rate / MARKER_RATE))
         self.since_markers = 0
+        self.markers = ros_msgs.TrainMarkers(self.train, "map")  # built once, redrawn (as the node does)
         self.ros_msgs, self.serialize, self.Float64 = ros_msgs, serialize_message, Float64
         self.recorder = None
         if bag_dir is not None:
@@ -192,7 +193,7 @@ class Ticker:
         self.marker_tick = self.since_markers >= self.marker_every
         if self.marker_tick:
             self.since_markers = 0
-            msgs["/markers"] = self.ros_msgs.train_markers(out, self.train, "map")
+            msgs["/markers"] = self.markers.update(out)
         t3 = perf()
         # the two commands a player sends per tick, recorded as received; then the outputs
         data = [("/steering_angle", self.serialize(self.Float64(data=command))),
