@@ -42,10 +42,11 @@ from .holonomic import HolonomicReduction
 from .spec import Train
 
 # Normalised cornering stiffness C_alpha / F_z of an agricultural tyre on soil, per rad. An
-# estimate, not a measurement: road car tyres give ~15-20 /rad on asphalt; large, soft tractor
-# tyres on deformable soil are reported several times lower (Crolla & El-Razaz, J. Terramechanics
-# 24(3), 1987, review of tyre forces on soft ground). 5 /rad is taken as a mid value; give
-# ``cornering_stiffness`` per cart for a measured one.
+# assumption, not a measurement and not taken from a checked source: road car tyres give
+# ~15-20 /rad on asphalt, and large, soft tractor tyres on deformable soil are stiff several times
+# less (the off-road tyre literature, e.g. the Journal of Terramechanics, treats this; we have not
+# fitted a value to it). 5 /rad is taken as a mid value; give ``cornering_stiffness`` per cart for
+# a measured one. docs/fidelity.md shows how the levels' errors scale with it (~1/C).
 CORNERING_COEFFICIENT = 5.0
 
 # The method the slip level uses unless one is forced. The tyres are stiff at low speed: the
