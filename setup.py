@@ -57,7 +57,13 @@ setup(
         'mcap>=1.5',  # BagWriter.flush() needs mcap's Writer.flush(), new in 1.5
         'mcap-ros2-support>=0.5',
     ],
+    # numba (the compiled tick, model/compiled.py) is an extra, not a hard requirement: the
+    # package runs without it (same results on the Python path, slower), numba's LLVM wheels are
+    # large and lag new Python releases, and a failed numba install must not block installing
+    # the simulator. requirements.txt (the venv, CI) and package.xml (rosdep) do pull it in.
+    # Tested with 0.68.1; older versions untested.
     extras_require={
+        'jit': ['numba>=0.59'],
         'plot': ['matplotlib>=3.6'],
         'test': ['pytest>=7'],
     },

@@ -194,7 +194,7 @@ class SimNode(Node):
         self.get_logger().info(
             f"scene '{self.scene.name}', {len(self.cart_names)} carts, {self.sim.method} step {self.sim.step:g} s, "
             f"tick {self.sim.tick:g} s, real-time factor {self.cfg['real_time_factor']:g}; "
-            f"fidelity {self.sim.choice.reason}")
+            f"fidelity {self.sim.choice.reason}; {self.sim.compiled_note}")
 
     def _simulation(self) -> Simulation:
         """A Simulation of the scene with the node's integrator and fidelity parameters."""
@@ -351,6 +351,7 @@ class SimNode(Node):
             "step": str(self.sim.step),
             "stepper_step": str(self.sim.stepper_step),  # smaller than step when sub-stepping for stability
             "stability_note": self.sim.stability_note or "",
+            "right_hand_side": self.sim.compiled_note,  # compiled (numba) tick or the Python path; same results
             "rate": str(self.cfg["publish_rate"]),
             "algorithm": "2",
             "fidelity": self.sim.level,

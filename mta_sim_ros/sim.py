@@ -8,6 +8,8 @@ command sequence, and a run is deterministic.
 from __future__ import annotations
 
 import math
+import os
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -20,6 +22,33 @@ from .model.dynamics import Model
 from .model.geometry import cart_points, hitch_angles
 from .model.guards import ModelValidityError, check_state, fast_modes, jackknife_margin
 from .model.spec import Scene, Table
+
+
+NO_JIT_ENV = "MTA_SIM_NO_JIT"  # set to 1: Simulation(compiled=None) keeps the Python path
+
+
+def compiled_model(model, method: str, compiled: bool | None):
+    """(model.compiled.CompiledModel or None, note saying why). ``compiled``: None = when the model
+    and method have a compiled form, numba is importable and MTA_SIM_NO_JIT is not set; True =
+    required (ValueError/ImportError if impossible); False = never."""
+    if compiled is False:
+        return None, "Python right-hand side (compiled=False)"
+    if compiled is None and os.environ.get(NO_JIT_ENV, "").strip() not in ("", "0"):
+        return None, f"Python right-hand side ({NO_JIT_ENV}={os.environ[NO_JIT_ENV]})"
+    from .integrate.steppers import FIXED_METHODS
+
+    try:
+        from .model import compiled as jit
+    except (ImportError, OSError) as err:  # OSError: llvmlite's shared library failed to load
+        if compiled:
+            raise
+        return None, f"Python right-hand side (numba not importable: {err})"
+    if method not in FIXED_METHODS or not jit.supports(model):
+        if compiled:
+            raise ValueError(f"compiled=True: no compiled path for method {method!r} with this model (it covers "
+                             f"{', '.join(FIXED_METHODS)} on the dynamic level, algorithm 2)")
+        return None, "Python right-hand side (no compiled form for this method and model)"
+    return jit.CompiledModel(model), f"compiled {method} tick (numba {jit.numba_version()})"
 
 
 def table_value(table: Table, t: float) -> float:
@@ -97,8 +126,15 @@ class Simulation:
 
     def __init__(self, scene: Scene, method: str | None = None, step: float | None = None,
                  rate: float | None = None, algorithm: int = 2, substep: bool = True,
-                 fidelity: str | None = None):
-        """A fixed step past its method's stability limit for a fast mode of the model (e.g. rk4
+                 fidelity: str | None = None, compiled: bool | None = None):
+        """``compiled``: run each tick of a fixed-step method on the dynamic level (algorithm 2) in
+        compiled code (model/compiled.py, numba), bit for bit the Python path's arithmetic; None
+        (default) = whenever possible unless the environment sets MTA_SIM_NO_JIT=1, True = required,
+        False = the Python path. ``self.compiled`` says which runs, ``compiled_note`` why, and
+        ``compile_time`` the seconds the JIT warm-up took here (0 without it; ~0 when already
+        compiled in this process or loaded from numba's disk cache).
+
+        A fixed step past its method's stability limit for a fast mode of the model (e.g. rk4
         with step > 2.785 x the steering actuator's time constant) would give growing garbage:
         with ``substep`` the stepper then takes shorter steps and ``stability_note`` (also warned)
         says why; without it, UnstableStepError."""
@@ -129,12 +165,22 @@ class Simulation:
                 raise UnstableStepError(self.stability_note.replace(
                     "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
             warnings.warn(self.stability_note, RuntimeWarning, stacklevel=2)
+        self._compiled, self.compiled_note = compiled_model(self.model, self.method, compiled)
+        self.compiled = self._compiled is not None
+        self.compile_time = 0.0
         self.reset()
+        if self._compiled is not None:  # compile now, not in the first tick
+            t_c = time.perf_counter()
+            self._compiled.warm_up(self.y)
+            self.compile_time = time.perf_counter() - t_c
+            self.compiled_note += f", JIT warm-up {self.compile_time:.3g} s"
 
     def reset(self) -> None:
         """Back to the scene's start, with a fresh stepper (an adaptive one forgets its last step,
         so a run after a reset is the same as the first)."""
         self.stepper = make_stepper(self.method, self.stepper_step, self.rtol, self.atol)
+        if getattr(self, "_compiled", None) is not None:
+            self.stepper.attach(self._compiled)
         self.ticks = 0
         self.y = start_state(self.scene, self.model)
         self.command = self.scene.initial.steering
@@ -153,6 +199,14 @@ class Simulation:
         validity (the state before the failing tick is kept)."""
         t0 = self.t
         model = self.model
+        if getattr(self.stepper, "compiled", None) is not None:  # the compiled tick (model/compiled.py)
+            y1, clear = self.stepper.advance_held(t0, self.y, t0 + self.tick, command, v_set)
+            if not clear:  # non-finite or near a jackknife limit: the Python check decides and says why
+                check_state(model, t0 + self.tick, y1)
+            self.y = y1
+            self.ticks += 1
+            self.command, self.v_set = command, v_set
+            return y1
 
         def f(t, y):
             return model.rhs(t, y, command, v_set)

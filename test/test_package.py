@@ -38,6 +38,7 @@ _ROSDEP_KEYS = {
     'scipy': 'python3-scipy',
     'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib',
+    'numba': 'python3-numba',  # model/compiled.py (optional at run time; also in requirements.txt)
 }
 # Third-party modules without a rosdep key: import name -> PyPI distribution
 # that must be listed in requirements.txt.

@@ -286,13 +286,10 @@ def test_diagnostics_refuse_unknown_levels(level):
 
 
 def test_markers_redrawn_in_place_equal_markers_built_afresh(lane_change):
-    """The node's TrainMarkers reuses one MarkerArray; after any number of updates its bytes are
-    those of a MarkerArray built from scratch for the same outputs."""
-    from rclpy.serialization import serialize_message
-
+    """The node's TrainMarkers reuses one MarkerArray; after any number of updates it equals,
+    field by field, a MarkerArray built from scratch for the same outputs. (Not compared as CDR
+    bytes: the serializer leaves alignment padding uninitialised.)"""
     sim, samples = lane_change
     redrawn = ros_msgs.TrainMarkers(sim.scene.train, "odom")
-    picks = samples[:: max(1, len(samples) // 7)] + [samples[0]]  # along the run, then back to the start
-    for out in picks:
-        assert serialize_message(redrawn.update(out)) == serialize_message(
-            ros_msgs.train_markers(out, sim.scene.train, "odom"))
+    for out in samples + [samples[0]]:  # along the run, then back to the start
+        assert redrawn.update(out) == ros_msgs.train_markers(out, sim.scene.train, "odom")

@@ -126,7 +126,8 @@ def main(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - started
     extra = {
         "fidelity": choice.reason,
-        "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations",
+        "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations; "
+                      f"{sim.compiled_note}",
         "wall time": f"{wall:.2f} s (x{summary.duration / wall:.0f} real time)" if wall > 0 else "",
         "bag": str(bag_path),
     }
