@@ -14,7 +14,6 @@ import math
 from typing import Callable
 
 import numpy as np
-from scipy import integrate as sp
 
 Fun = Callable[[float, np.ndarray], np.ndarray]
 
@@ -101,6 +100,10 @@ class Adaptive:
         self.method = method
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
         self.nfev = 0
+        # imported here, not at module level: scipy.integrate is ~50 MB resident that a run with a
+        # fixed-step method never needs (docs/benchmarks/scaling.md, the 1-hour run's memory)
+        from scipy import integrate as sp
+
         self._solver_class = getattr(sp, method)
         self._last_step: float | None = None
 
