@@ -179,6 +179,7 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self.recorder = None
+        self.bag_names: dict[str, str] = {}  # topic -> its name in the bag (qualified in the namespace)
         if self.cfg["record"]:
             topics = {qualified(t, self.get_namespace()): ty for t, ty in TOPICS.items()}
             topics[qualified("markers", self.get_namespace())] = MARKERS_TYPE
@@ -243,10 +244,11 @@ class SimNode(Node):
             if self.markers.frame_id != self.cfg["frame_id"]:  # frame_id changes live
                 self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])
             msgs["markers"] = self.markers.update(out)
+        stamp_ns = round(self.now * 1e9)
         for topic, msg in msgs.items():
             data = serialize_message(msg)  # once: the same bytes go to DDS and to the bag
             self.pubs[topic].publish(data)
-            self._record(topic, data)
+            self._record(topic, data, stamp_ns)
         cpu = time.thread_time() - cpu_started
         self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
         self.cpu_stats.record(cpu)
@@ -261,11 +263,12 @@ class SimNode(Node):
             self._record(WATCHDOG_TOPIC, Float64(data=0.0 if straight else self.steering.value))
         return 0.0 if straight else self.steering.value
 
-    def _record(self, topic: str, msg) -> None:
-        """Log a message (or its CDR bytes) at the current simulation time."""
+    def _record(self, topic: str, msg, stamp_ns: int | None = None) -> None:
+        """Log a message (or its CDR bytes) at the current simulation time (or ``stamp_ns``)."""
         if self.recorder is not None and self.recorder.recording:
             data = msg if isinstance(msg, bytes) else serialize_message(msg)
-            self.recorder.write(qualified(topic, self.get_namespace()), data, round(self.now * 1e9))
+            name = self.bag_names.get(topic) or self.bag_names.setdefault(topic, qualified(topic, self.get_namespace()))
+            self.recorder.write(name, data, round(self.now * 1e9) if stamp_ns is None else stamp_ns)
             if self.recorder.error:
                 self.get_logger().error(self.recorder.error)
 

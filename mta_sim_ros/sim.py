@@ -20,7 +20,7 @@ from .integrate import IntegrationError, make_stepper
 from .integrate.stability import UnstableStepError, stable_step
 from .model.dynamics import Model
 from .model.geometry import cart_points, hitch_angles
-from .model.guards import ModelValidityError, check_state, fast_modes, jackknife_margin
+from .model.guards import ModelValidityError, check_state, fast_modes, margin_of
 from .model.spec import Scene, Table
 
 
@@ -238,11 +238,12 @@ def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_se
     axle_speed = np.array(ch.kapB) * V
     resistance = np.array(tm.resistance)
     resistance_power = float(np.dot(resistance, axle_speed))
+    phis = hitch_angles(heading.tolist())
     return Outputs(
         t=t,
         front=pts["A"], axle=pts["B"], com=pts["C"], rear_hitch=pts["rear_hitch"],
         heading=np.array(heading, dtype=float),
-        hitch_angle=np.array(hitch_angles(heading.tolist())),
+        hitch_angle=np.array(phis),
         psi=np.array(ch.psi),
         com_speed=np.array(ch.kapC) * V,
         axle_speed=axle_speed,
@@ -256,7 +257,7 @@ def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_se
         power=tm.traction * V,
         resistance_power=resistance_power,
         kinetic_energy=0.5 * tm.mass * V * V,
-        jackknife_margin=jackknife_margin(model, y)[0],
+        jackknife_margin=margin_of(model.train, phis, ch.psi)[0],  # the chain's psi: no second walk
     )
 
 

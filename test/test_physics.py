@@ -11,6 +11,7 @@ from scipy.integrate import solve_ivp
 
 from mta_sim_ros.model.dynamics import Model
 from mta_sim_ros.model.geometry import cart_points
+from mta_sim_ros.model.guards import jackknife_margin
 from mta_sim_ros.model.holonomic import HolonomicReduction
 from mta_sim_ros.model.steady import SteadyStateError, steady_circle
 from mta_sim_ros.sim import Simulation, evaluate_outputs, run_scene
@@ -22,15 +23,6 @@ TRAINS = {n: trains.train(n) for n in range(1, 6)}
 NEGATIVE_OFFSET = trains.train(carts=[trains.CARTS[0], (4.0, -0.8, 1.0, 5000.0, 20000.0), trains.CARTS[2]])
 
 
-def random_state(model: Model, rng) -> np.ndarray:
-    L = model.layout
-    y = np.zeros(L.size)
-    y[L.x], y[L.y] = rng.normal(0, 10, 2)
-    y[L.heading] = rng.uniform(-math.pi, math.pi) + np.cumsum(rng.uniform(-0.4, 0.4, L.n))
-    y[L.steering] = rng.uniform(-0.5, 0.5)
-    y[L.speed] = rng.uniform(-4, 4)
-    y[L.governor] = rng.normal(0, 2e4)
-    return y
 
 
 # -- algorithm 1 = algorithm 2 --------------------------------------------------------------
@@ -48,7 +40,7 @@ def test_holonomic_reduction_equals_direct_differentiation(n, law):
     alg1, alg2 = Model(tr, algorithm=1), Model(tr, algorithm=2)
     rng = np.random.default_rng(n)
     for _ in range(20):
-        y = random_state(alg2, rng)
+        y = trains.random_state(alg2, rng)
         command, v_set = rng.uniform(-0.6, 0.6), rng.uniform(-3, 3)
         t1, t2 = alg1.terms(y, command, v_set), alg2.terms(y, command, v_set)
         scale = max(abs(t2.velocity_term), t2.mass * 1e-3)
@@ -65,7 +57,7 @@ def test_force_structural_matrix_equals_velocity_coefficient():
     hol = HolonomicReduction(tr)
     rng = np.random.default_rng(7)
     for _ in range(10):
-        y = random_state(model, rng)
+        y = trains.random_state(model, rng)
         ch = model.terms(y, 0.0, 0.0).chain
         np.testing.assert_allclose(hol.resistance_projection(list(y), ch), ch.kapB, rtol=1e-12, atol=1e-14)
 
@@ -97,7 +89,7 @@ def test_no_side_slip_and_element_speeds(n):
     model = Model(tr)
     rng = np.random.default_rng(11 + n)
     for _ in range(10):
-        y = random_state(model, rng)
+        y = trains.random_state(model, rng)
         dy = model.rhs(0.0, y, 0.0, 0.0)
         qdot = dy[: n + 2]
         v = point_velocities(tr, y, qdot)
@@ -112,6 +104,18 @@ def test_no_side_slip_and_element_speeds(n):
         course = th[0] + y[model.layout.steering]
         assert abs(-v["A"][0, 0] * math.sin(course) + v["A"][0, 1] * math.cos(course)) < 1e-12 * speed_scale
         assert independent_kinetic_energy(tr, y, qdot) == pytest.approx(out.kinetic_energy, rel=1e-12)
+
+
+def test_outputs_jackknife_margin_is_the_guards_at_any_speed():
+    """evaluate_outputs takes psi_k from the chain it walked at the state's speed V; the guard walks
+    it at V = 0. psi_k is geometry (headings and psi_1), so the margins agree exactly."""
+    rng = np.random.default_rng(11)
+    for n in (2, 3, 5):
+        model = Model(TRAINS[n])
+        for _ in range(50):
+            y = trains.random_state(model, rng, spread=0.8)
+            out = evaluate_outputs(model, 0.0, y, 0.1, 3.0)
+            assert out.jackknife_margin == jackknife_margin(model, y)[0]
 
 
 # -- power balance ----------------------------------------------------------------------------

@@ -31,17 +31,21 @@ def jackknife_margin(model, y) -> tuple[float, int]:
 
     Margin of cart k (k >= 2) = min(max_hitch_angle_k - |phi_k|, pi/2 - |psi_k|). A single cart
     has no hitch: (inf, -1)."""
-    n = model.layout.n
-    if n == 1:
+    if model.layout.n == 1:
         return math.inf, -1
     heading = [float(v) for v in y[model.layout.heading]]
     psi1 = float(y[model.layout.steering])
     ch = chain(model.geom, heading, psi1, 0.0, 0.0)
-    phis = hitch_angles(heading)
+    return margin_of(model.train, hitch_angles(heading), ch.psi)
+
+
+def margin_of(train, phis, psi) -> tuple[float, int]:
+    """:func:`jackknife_margin` from hitch angles phi_k (n - 1) and the chain's psi_k (n) already
+    at hand (psi does not depend on the speed)."""
     best, where = math.inf, -1
-    for k in range(1, n):
-        limit = model.train.carts[k].max_hitch_angle
-        margin = min(limit - abs(phis[k - 1]), JACKKNIFE_PSI - abs(ch.psi[k]))
+    for k in range(1, len(train.carts)):
+        limit = train.carts[k].max_hitch_angle
+        margin = min(limit - abs(phis[k - 1]), JACKKNIFE_PSI - abs(psi[k]))
         if margin < best:
             best, where = margin, k
     return best, where
