@@ -37,15 +37,6 @@ def long_train(n: int, traction=trains.GOVERNOR):
     return trains.train(carts=[trains.CARTS[k % len(trains.CARTS)] for k in range(n)], traction=traction)
 
 
-def random_state(model, rng):
-    L = model.layout
-    y = np.zeros(L.size)
-    y[L.x], y[L.y] = rng.normal(0, 10, 2)
-    y[L.heading] = rng.uniform(-math.pi, math.pi) + np.cumsum(rng.uniform(-0.3, 0.3, L.n))
-    y[L.steering] = rng.uniform(-0.5, 0.5)
-    y[L.speed] = rng.uniform(-4, 4)
-    y[L.governor] = rng.normal(0, 2e4)
-    return y
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 100])
@@ -54,7 +45,7 @@ def test_fused_rhs_equals_the_reference_path_bit_for_bit(n, law):
     model = Model(long_train(n, LAWS[law]))
     rng = np.random.default_rng(n)
     for _ in range(20):
-        y = random_state(model, rng)
+        y = trains.random_state(model, rng, spread=0.3)
         command, v_set = rng.uniform(-0.6, 0.6), rng.uniform(0, 4)
         fast = model.rhs(0.0, y, command, v_set)
         reference, _ = model.derivative(y, command, v_set)
@@ -65,7 +56,7 @@ def test_fused_rhs_equals_the_reference_path_bit_for_bit(n, law):
 
 def test_algorithm_1_still_goes_through_the_reference_path():
     tr = long_train(4)
-    y = random_state(Model(tr), np.random.default_rng(0))
+    y = trains.random_state(Model(tr), np.random.default_rng(0), spread=0.3)
     a1, a2 = Model(tr, algorithm=1), Model(tr, algorithm=2)
     np.testing.assert_allclose(a1.rhs(0.0, y, 0.1, 3.0), a2.rhs(0.0, y, 0.1, 3.0), rtol=1e-9, atol=1e-9)
 
@@ -85,7 +76,7 @@ def test_rhs_work_is_linear_in_the_carts(monkeypatch):
         monkeypatch.setattr(math, name, counting(name, getattr(math, name)))
     for n in (1, 3, 10, 100):
         model = Model(long_train(n))
-        y = random_state(model, np.random.default_rng(1))
+        y = trains.random_state(model, np.random.default_rng(1), spread=0.3)
         counts.clear()
         model.rhs(0.0, y, 0.1, 3.0)
         expected = {"sin": n + 1, "cos": n + 1, "sqrt": 2 * n - 1, "atan2": n - 1, "tanh": n}
@@ -113,7 +104,7 @@ def test_rhs_memory_is_linear_in_the_carts_and_released():
     peaks = {}
     for n in (100, 200, 400):
         model = Model(long_train(n))
-        y = random_state(model, np.random.default_rng(2))
+        y = trains.random_state(model, np.random.default_rng(2), spread=0.3)
         model.rhs(0.0, y, 0.1, 3.0)  # warm: nothing lazily built on the first call counts
         peak, held = traced_peak(lambda: model.rhs(0.0, y, 0.1, 3.0))
         peaks[n] = peak

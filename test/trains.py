@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from mta_sim_ros.model.spec import (Actuator, Cart, Draft, Initial, Integrator, Rolling, Scene,
                                     Table, Traction, Train)
 
@@ -52,3 +54,17 @@ def scene(tr: Train, table=((0.0,), (0.0,)), duration=10.0, rate=10.0, method="r
         integrator=Integrator(method=method, step=step, rtol=rtol, atol=atol),
         publish_rate=rate,
     )
+
+
+def random_state(model, rng, spread: float = 0.4, steering: float = 0.5, slow: bool = False) -> np.ndarray:
+    """A random state of a no-slip model: pose anywhere, hitch angles within +-``spread`` per joint,
+    steering within +-``steering``, V in [-4, 4] m/s (with ``slow``, a third of the draws inside the
+    tanh smoothing near V = 0 and a third exactly 0), a governor integral of the size of the forces."""
+    L = model.layout
+    y = np.zeros(L.size)
+    y[L.x], y[L.y] = rng.normal(0, 10, 2)
+    y[L.heading] = rng.uniform(-math.pi, math.pi) + np.cumsum(rng.uniform(-spread, spread, L.n))
+    y[L.steering] = rng.uniform(-steering, steering)
+    y[L.speed] = rng.choice([rng.uniform(-4, 4), rng.uniform(-0.08, 0.08), 0.0]) if slow else rng.uniform(-4, 4)
+    y[L.governor] = rng.normal(0, 2e4)
+    return y
