@@ -163,7 +163,7 @@ class SimNode(Node):
         self.run_started = time.monotonic()
         self.ticks_since_markers = 0
         self.marker_every = max(1, round(self.cfg["publish_rate"] / self.cfg["marker_rate"]))
-        self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])  # redrawn in place
+        self._make_encoders()
         self.wall_start = time.monotonic()
         self.sim_at_wall_start = 0.0
 
@@ -237,21 +237,26 @@ class SimNode(Node):
             return
         out = self.sim.outputs()
         out.t = self.now
-        msgs = ros_msgs.output_messages(out, self.cart_names, self.cfg["frame_id"])
+        if self.encoder.frame_id != self.cfg["frame_id"]:  # frame_id changes live
+            self._make_encoders()
+        msgs = self.encoder.encode(out)  # CDR bytes: the same bytes go to DDS and to the bag
         self.ticks_since_markers += 1
         if self.ticks_since_markers >= self.marker_every:
             self.ticks_since_markers = 0
-            if self.markers.frame_id != self.cfg["frame_id"]:  # frame_id changes live
-                self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])
-            msgs["markers"] = self.markers.update(out)
+            msgs["markers"] = self.markers.encode(out)
         stamp_ns = round(self.now * 1e9)
-        for topic, msg in msgs.items():
-            data = serialize_message(msg)  # once: the same bytes go to DDS and to the bag
+        for topic, data in msgs.items():
             self.pubs[topic].publish(data)
             self._record(topic, data, stamp_ns)
         cpu = time.thread_time() - cpu_started
         self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
         self.cpu_stats.record(cpu)
+
+    def _make_encoders(self) -> None:
+        """The tick's messages as CDR templates (ros_msgs.OutputEncoder, TrainMarkers), for the
+        current frame_id."""
+        self.encoder = ros_msgs.OutputEncoder(self.cart_names, self.cfg["frame_id"])
+        self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])
 
     def _held_steering(self) -> float:
         """The steering command for this tick: the latest one, or 0 (straight) while the watchdog

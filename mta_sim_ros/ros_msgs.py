@@ -17,7 +17,11 @@ from __future__ import annotations
 import importlib
 import math
 import numbers
+import struct
 from typing import Mapping, Sequence
+
+import numpy as np
+from rclpy.serialization import serialize_message
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -112,6 +116,107 @@ def output_messages(out, cart_names: Sequence[str], frame_id: str = "map") -> di
     }
 
 
+# -- encoding by patching a template ---------------------------------------------------------
+
+#: Bit pattern of the first sentinel double (about 2.7e300; never a real output). Sentinel i is
+#: the double whose bits are SENTINEL_BITS + i: distinct for every i, finite, unmistakable.
+SENTINEL_BITS = 0x7E5A_0000_0000_0000
+#: The sentinel stamp (sec, nanosec) set in every header of a template.
+SENTINEL_STAMP = (0x5EC0_7A11, 987_654_321)
+_ENCAPSULATION = 4  # CDR starts with a 4-byte encapsulation header; alignment counts from after it
+
+
+def sentinel(i: int) -> float:
+    """The i-th sentinel double (see SENTINEL_BITS)."""
+    return struct.unpack("<d", struct.pack("<Q", SENTINEL_BITS + i))[0]
+
+
+class CdrTemplate:
+    """A message of fixed shape serialized once by rclpy, then re-encoded by writing new values
+    over the old ones in the CDR bytes: no message objects, no typesupport conversion per tick.
+
+    Build it from a message whose variable float64 fields hold ``sentinel(0) ... sentinel(m - 1)``
+    (in the order ``fill`` will give the values) and whose stamps (builtin_interfaces/Time) all
+    hold ``SENTINEL_STAMP``; the constructor finds where each sits in the serialized bytes and
+    refuses a template where one is missing or ambiguous. Strings, sequence lengths and every
+    other field keep the template's values. ``test/test_ros_msgs.py`` decodes filled templates
+    with rclpy and compares them with messages built field by field.
+    """
+
+    def __init__(self, msg, values: int, stamps: int):
+        self.type_name = type(msg).__name__
+        self.buf = bytearray(serialize_message(msg))
+        if self.buf[:2] != b"\x00\x01":
+            raise ValueError(f"{self.type_name}: not little-endian CDR ({bytes(self.buf[:4])!r})")
+        words = (len(self.buf) - _ENCAPSULATION) // 4
+        self.f64 = np.frombuffer(self.buf, dtype="<f8", count=words // 2, offset=_ENCAPSULATION)
+        self.u32 = np.frombuffer(self.buf, dtype="<u4", count=words, offset=_ENCAPSULATION)
+        slots = []
+        for i in range(values):
+            (where,) = self._find(struct.pack("<d", sentinel(i)), 8, 1, f"value {i}")
+            slots.append(where // 8)
+        self.values = np.array(slots, dtype=np.intp)
+        found = self._find(struct.pack("<iI", *SENTINEL_STAMP), 4, stamps, "stamp") if stamps else []
+        self.sec = np.array([w // 4 for w in found], dtype=np.intp)
+        self.nanosec = self.sec + 1
+
+    def _find(self, pattern: bytes, align: int, count: int, what: str) -> list[int]:
+        """Offsets (from after the encapsulation header) of the ``count`` occurrences of pattern."""
+        found, start = [], 0
+        while (at := self.buf.find(pattern, start)) >= 0:
+            if (at - _ENCAPSULATION) % align == 0:
+                found.append(at - _ENCAPSULATION)
+            start = at + 1
+        if len(found) != count:
+            raise ValueError(f"{self.type_name} template: {what} found {len(found)} times, expected {count}")
+        return found
+
+    def fill(self, values, t_seconds: float | None = None) -> bytes:
+        """The CDR bytes of the message with these values (in sentinel order) and every stamp set
+        to ``t_seconds`` (rounded to the nanosecond like ``bag.writer.stamp``)."""
+        self.f64[self.values] = values
+        if t_seconds is not None:
+            sec, nanosec = divmod(round(t_seconds * 1e9), 10**9)
+            self.u32[self.sec] = sec & 0xFFFF_FFFF  # int32 sec, two's complement
+            self.u32[self.nanosec] = nanosec
+        return bytes(self.buf)
+
+
+class OutputEncoder:
+    """CDR bytes of :func:`output_messages` straight from the Outputs, for the node's tick: the
+    same messages (``test_ros_msgs.py`` decodes and compares them), about a tenth of the work."""
+
+    def __init__(self, cart_names: Sequence[str], frame_id: str = "map"):
+        self.n, self.frame_id = len(cart_names), frame_id
+        n = self.n
+        s = [sentinel(i) for i in range(4 * n)]
+        Stamp = Time(sec=SENTINEL_STAMP[0], nanosec=SENTINEL_STAMP[1])
+        poses = [Pose(position=Point(x=s[4 * k], y=s[4 * k + 1], z=0.0),
+                      orientation=Quaternion(x=0.0, y=0.0, z=s[4 * k + 2], w=s[4 * k + 3])) for k in range(n)]
+        self.poses = CdrTemplate(PoseArray(header=Header(stamp=Stamp, frame_id=frame_id), poses=poses), 4 * n, 1)
+        self.joints = CdrTemplate(JointState(header=Header(stamp=Stamp, frame_id=""), name=[str(c) for c in cart_names],
+                                             position=s[:n], velocity=s[n:2 * n], effort=s[2 * n:3 * n]), 3 * n, 1)
+        self.scalar = CdrTemplate(Float64(data=s[0]), 1, 0)
+        self.clock = CdrTemplate(Clock(clock=Stamp), 0, 1)
+        self.pose_values = np.zeros((n, 4))
+
+    def encode(self, out) -> dict[str, bytes]:
+        """topic -> CDR bytes, the topics and values of :func:`output_messages`."""
+        if len(out.heading) != self.n:
+            raise ValueError(f"OutputEncoder: {self.n} cart names for {len(out.heading)} carts")
+        t, v = out.t, self.pose_values
+        v[:, :2] = out.front
+        for k, th in enumerate(out.heading.tolist()):  # yaw_quaternion's math, bit for bit
+            v[k, 2], v[k, 3] = math.sin(th / 2.0), math.cos(th / 2.0)
+        return {
+            "hitch_poses": self.poses.fill(v.ravel(), t),
+            "cart_velocities": self.joints.fill(np.concatenate((out.heading, out.com_speed, out.resistance)), t),
+            "traction_power": self.scalar.fill(out.power),
+            "applied_steering": self.scalar.fill(out.steering),
+            "/clock": self.clock.fill((), t),
+        }
+
+
 # -- markers -------------------------------------------------------------------
 
 
@@ -186,15 +291,36 @@ class TrainMarkers:
         markers.append(self.hitches)
         self.array = MarkerArray(markers=markers)
         self.stamps = [m.header.stamp for m in markers]
+        # Every drawn point, in the order of _coordinates: per cart the outline's 5 corners, the
+        # axle's 2 ends and the label's position, then the hitch points.
+        self.points = [p for k in range(n) for p in (*self.outlines[k].points, *self.axles[k].points,
+                                                      self.labels[k].pose.position)]
+        self.points += self.hitches.points
+        self._set(SENTINEL_STAMP, [sentinel(i) for i in range(2 * len(self.points))])
+        self.template = CdrTemplate(self.array, 2 * len(self.points), len(self.stamps))
 
     def update(self, out) -> MarkerArray:
+        st = stamp(out.t)
+        self._set((st["sec"], st["nanosec"]), self._coordinates(out))
+        return self.array
+
+    def encode(self, out) -> bytes:
+        """The CDR bytes of ``update(out)``, without touching the message objects."""
+        return self.template.fill(self._coordinates(out), out.t)
+
+    def _set(self, sec_nanosec, xy: list[float]) -> None:
+        for s in self.stamps:
+            s.sec, s.nanosec = sec_nanosec
+        for i, p in enumerate(self.points):
+            p.x, p.y = xy[2 * i], xy[2 * i + 1]
+
+    def _coordinates(self, out) -> list[float]:
+        """x, y of every point in ``self.points`` order."""
         n = len(self.train.carts)
         if len(out.front) != n:
             raise ValueError(f"train_markers: {len(out.front)} carts in the outputs, {n} in train "
                              f"{self.train.name!r}")
-        st = stamp(out.t)
-        for s in self.stamps:
-            s.sec, s.nanosec = st["sec"], st["nanosec"]
+        xy: list[float] = []
         front, axle_pts, heading = out.front.tolist(), out.axle.tolist(), out.heading.tolist()
         rear_points = front[1:] + [[float(v) for v in out.rear_hitch]]
         for k in range(n):
@@ -207,20 +333,14 @@ class TrainMarkers:
             # How far back of A_k the outline reaches (the rear hitch may be ahead of the axle).
             back = max((ax - bx) * ex + (ay - by) * ey, (ax - rx) * ex + (ay - ry) * ey)
             tx, ty = ax - back * ex, ay - back * ey  # centre of the outline's rear edge
-            _move(self.outlines[k].points, ((ax + half * nx, ay + half * ny), (ax - half * nx, ay - half * ny),
-                                            (tx - half * nx, ty - half * ny), (tx + half * nx, ty + half * ny),
-                                            (ax + half * nx, ay + half * ny)))
-            _move(self.axles[k].points, ((bx + half * nx, by + half * ny), (bx - half * nx, by - half * ny)))
-            position = self.labels[k].pose.position
-            position.x, position.y = (ax + tx) / 2.0, (ay + ty) / 2.0
-        _move(self.hitches.points, front)
-        return self.array
-
-
-def _move(points: list[Point], xy) -> None:
-    """Set the x, y of existing Points in place (z stays 0)."""
-    for p, (x, y) in zip(points, xy):
-        p.x, p.y = x, y
+            xy += (ax + half * nx, ay + half * ny, ax - half * nx, ay - half * ny,  # outline
+                   tx - half * nx, ty - half * ny, tx + half * nx, ty + half * ny,
+                   ax + half * nx, ay + half * ny,
+                   bx + half * nx, by + half * ny, bx - half * nx, by - half * ny,  # axle
+                   (ax + tx) / 2.0, (ay + ty) / 2.0)  # label
+        for x, y in front:
+            xy += (x, y)
+        return xy
 
 
 # -- diagnostics ---------------------------------------------------------------

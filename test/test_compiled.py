@@ -67,6 +67,8 @@ def train(n: int, traction):
 def assert_close(a, b, rtol=RTOL):
     a, b = np.asarray(a), np.asarray(b)
     assert a.shape == b.shape and a.dtype == b.dtype == np.float64
+    if not a.size:
+        return
     scale = np.maximum(np.abs(b), 1.0)
     worst = float(np.max(np.abs(a - b) / scale))
     assert worst <= rtol, f"compiled and Python differ by {worst:.3g} (relative)"
@@ -102,6 +104,41 @@ def test_compiled_tick_equals_the_python_stepper(method, n):
             got, clear = stepper.advance_held(t0, y, t0 + 0.01, command, v_set)
             assert_close(got, ref)
             assert isinstance(clear, bool)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 20])
+@pytest.mark.parametrize("law", list(LAWS))
+def test_compiled_outputs_equal_the_python_outputs(n, law):
+    """CompiledModel.outputs (the node's tick) equals sim.evaluate_outputs field by field, at
+    random states, speeds through 0 and commands past the actuator's limits."""
+    import dataclasses
+
+    from mta_sim_ros.sim import evaluate_outputs
+
+    model = Model(train(n, LAWS[law]))
+    cm = compiled.CompiledModel(model)
+    rng = np.random.default_rng(7 * n + len(law))
+    for _ in range(20):
+        y = trains.random_state(model, rng, steering=0.7, slow=True)
+        command, v_set, t = rng.uniform(-1.0, 1.0), rng.uniform(-1, 4), rng.uniform(0, 100)
+        got, ref = cm.outputs(t, y, command, v_set), evaluate_outputs(model, t, y, command, v_set)
+        assert got is not None
+        for field in dataclasses.fields(ref):
+            a, b = getattr(got, field.name), getattr(ref, field.name)
+            if isinstance(b, np.ndarray):
+                assert_close(a, b)
+            else:
+                assert a == pytest.approx(b, rel=RTOL, abs=1e-300), field.name
+
+
+def test_compiled_outputs_leave_a_hitch_angle_past_pi_to_python():
+    """A hitch angle outside [-pi, pi] (the Python path wraps it) makes the compiled outputs step
+    aside (None); Simulation.outputs then gives the Python path's wrapped angle."""
+    sim = Simulation(headland(), fidelity="dynamic")
+    first = sim.model.layout.heading.start
+    sim.y[first + 1] = sim.y[first] - 3.5  # phi_2 = 3.5 rad
+    assert sim.compiled and sim._compiled.outputs(sim.t, sim.y, 0.0, 3.0) is None
+    assert sim.outputs().hitch_angle[0] == pytest.approx(3.5 - 2 * math.pi)
 
 
 def headland():

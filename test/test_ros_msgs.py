@@ -293,3 +293,61 @@ def test_markers_redrawn_in_place_equal_markers_built_afresh(lane_change):
     redrawn = ros_msgs.TrainMarkers(sim.scene.train, "odom")
     for out in samples + [samples[0]]:  # along the run, then back to the start
         assert redrawn.update(out) == ros_msgs.train_markers(out, sim.scene.train, "odom")
+
+
+# -- the node's encoding: CDR templates -------------------------------------------------------
+
+
+def decode_with_mcap(type_name, data):
+    decode, _ = codec(type_name)
+    return plain(decode(data))
+
+
+@pytest.mark.parametrize("frame_id", ["map", "odom", ""])
+def test_encoded_outputs_decode_to_the_messages_built_field_by_field(lane_change, offset_hitch, frame_id):
+    """OutputEncoder (the node's tick) writes values into CDR bytes serialized once; decoded with
+    rclpy and, independently, with mcap_ros2, every topic equals output_messages of the same
+    outputs. Several samples through one encoder: nothing of an earlier tick leaks into a later."""
+    for sim, samples in (lane_change, offset_hitch):
+        names = [c.name for c in sim.scene.train.carts]
+        encoder = ros_msgs.OutputEncoder(names, frame_id)
+        for out in samples + samples[::-1]:
+            built = ros_msgs.output_messages(out, names, frame_id)
+            data = encoder.encode(out)
+            assert data.keys() == built.keys()
+            for topic, msg in built.items():
+                assert deserialize_message(data[topic], type(msg)) == msg, topic
+                type_name = topics.TOPICS.get(topic) or "rosgraph_msgs/msg/Clock"
+                assert decode_with_mcap(type_name, data[topic]) == decoded(msg), topic
+
+
+def test_encoded_stamps_round_like_the_bag_stamp(lane_change):
+    """Stamps written into the template carry sec and nanosec as ``bag.stamp`` rounds them,
+    including the second boundary and large times."""
+    sim, samples = lane_change
+    encoder = ros_msgs.OutputEncoder([c.name for c in sim.scene.train.carts])
+    for t in (0.0, 0.999999999, 1.0, 12.3456789, 3599.9999999996, 2.0**31 - 1.5):
+        samples[1].t = t
+        clock = deserialize_message(encoder.encode(samples[1])["/clock"], ros_msgs.Clock)
+        assert (clock.clock.sec, clock.clock.nanosec) == tuple(stamp(t).values()), t
+
+
+def test_encoded_markers_decode_to_the_markers_built_afresh(lane_change, offset_hitch):
+    """TrainMarkers.encode (the node's marker tick) equals train_markers built from scratch."""
+    for sim, samples in (lane_change, offset_hitch):
+        markers = ros_msgs.TrainMarkers(sim.scene.train, "odom")
+        for out in samples + [samples[0]]:
+            fresh = ros_msgs.train_markers(out, sim.scene.train, "odom")
+            assert deserialize_message(markers.encode(out), type(fresh)) == fresh
+
+
+def test_a_template_refuses_a_missing_or_repeated_sentinel():
+    """A template whose message does not hold each sentinel exactly once is refused, naming it."""
+    from std_msgs.msg import Float64MultiArray
+
+    with pytest.raises(ValueError, match="value 1 found 0 times"):
+        ros_msgs.CdrTemplate(Float64MultiArray(data=[ros_msgs.sentinel(0), 1.0]), 2, 0)
+    with pytest.raises(ValueError, match="value 0 found 2 times"):
+        ros_msgs.CdrTemplate(Float64MultiArray(data=[ros_msgs.sentinel(0)] * 2), 1, 0)
+    with pytest.raises(ValueError, match="stamp found 0 times"):
+        ros_msgs.CdrTemplate(ros_msgs.Clock(), 0, 1)

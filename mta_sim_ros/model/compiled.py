@@ -37,11 +37,16 @@ from numba import njit
 _N, _LAW, _V0, _TAU, _MAX_RATE, _MAX_ANGLE = 0, 1, 2, 3, 4, 5
 _FORCE, _MAX_FORCE, _MAX_POWER, _KP, _KI, _WINDUP, _RESPONSE, _MAX_ACCEL = 6, 7, 8, 9, 10, 11, 12, 13
 HEADER = 16
-# per cart, from HEADER: l, a/l, (a/l)^2, (c/l)^2, m, J, f m g, first draft, number of drafts, hitch limit
-_L, _LAM, _LAM2, _MU2, _M, _J, _ROLL, _D_FIRST, _D_COUNT, _HITCH = range(10)
-CART = 10
+# per cart, from HEADER: l, a/l, (a/l)^2, (c/l)^2, m, J, f m g, first draft, number of drafts, hitch limit,
+# and for the outputs' points (geometry.cart_points) the cart's length, centre-of-mass and hitch offsets
+_L, _LAM, _LAM2, _MU2, _M, _J, _ROLL, _D_FIRST, _D_COUNT, _HITCH, _LENGTH, _COM, _HOFF = range(13)
+CART = 13
 # per draft, after the carts: soil factor, A, B, C, width, depth
 DRAFT = 6
+
+# columns of rec (see _rhs) and of the per-cart outputs (see _outputs)
+_KAPT, _KAPB, _KAPC, _PSI, _RES = range(5)
+REC = 5
 
 LAWS = {"constant": 0, "governor": 1, "prescribed_speed": 2}
 METHOD_CODES = {"euler": 0, "heun": 1, "rk4": 2}
@@ -68,7 +73,9 @@ def pack(model) -> np.ndarray:
     first = 0
     for k, (l_k, lam, lam2, mu2, m, J, rolling, ds) in enumerate(rows):
         b = HEADER + CART * k
-        P[b:b + CART] = (l_k, lam, lam2, mu2, m, J, rolling, first, len(ds), train.carts[k].max_hitch_angle)
+        cart = train.carts[k]
+        P[b:b + CART] = (l_k, lam, lam2, mu2, m, J, rolling, first, len(ds), cart.max_hitch_angle,
+                         cart.length, cart.com_offset, cart.hitch_offset)
         first += len(ds)
     base = HEADER + CART * n
     for i, d in enumerate(drafts):
@@ -91,9 +98,10 @@ def _pymax(a, b):
 
 
 @njit(cache=True)
-def _rhs(P, y, command, v_set, dy):
+def _rhs(P, y, command, v_set, dy, rec):
     """y' into dy: Model._rhs_direct + Model._traction + actuator.steering_rate + forces.*, in the
-    same order of operations."""
+    same order of operations. Returns (traction F_A1, mass M). When ``rec`` has rows (n x REC), the
+    chain's kapT, kapB, kapC, psi and the resistance F_Bk of each cart go into it (for outputs)."""
     n = int(P[_N])
     psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
     # actuator.steering_rate
@@ -138,8 +146,12 @@ def _rhs(P, y, command, v_set, dy):
             d = dbase + DRAFT * i
             S = abs(axle_speed) * MS_TO_KMH
             magnitude += P[d] * (P[d + 1] + P[d + 2] * S + P[d + 3] * S * S) * P[d + 4] * P[d + 5]
-        generalized_resistance += magnitude * math.tanh(axle_speed / v0) * b_val
+        resistance = magnitude * math.tanh(axle_speed / v0)
+        generalized_resistance += resistance * b_val
         dy[2 + k] = theta_rate
+        if rec.shape[0]:
+            rec[k, _KAPT], rec[k, _KAPB], rec[k, _KAPC] = t_val, b_val, kc_val
+            rec[k, _PSI], rec[k, _RES] = p_val, resistance
         if k < last:
             rl2 = cc + lam2 * s * s
             rl = math.sqrt(rl2)
@@ -157,6 +169,7 @@ def _rhs(P, y, command, v_set, dy):
     if law == 2:  # prescribed_speed: forces.prescribed_acceleration
         a = (v_set - V) / P[_RESPONSE]
         acceleration = _pymin(_pymax(a, -P[_MAX_ACCEL]), P[_MAX_ACCEL])
+        traction = mass * acceleration + generalized_resistance + velocity_term  # inverse dynamics
     else:
         if law == 1:  # forces.governor, forces.traction_limit
             error = v_set - V
@@ -176,13 +189,14 @@ def _rhs(P, y, command, v_set, dy):
     dy[n + 2] = psi_rate
     dy[n + 3] = acceleration
     dy[n + 4] = governor_rate
+    return traction, mass
 
 
 @njit(cache=True)
 def rhs(P, y, command, v_set):
     """y' as a new array (Model.rhs for algorithm 2)."""
     dy = np.empty(y.shape[0])
-    _rhs(P, y, command, v_set, dy)
+    _rhs(P, y, command, v_set, dy, np.empty((0, REC)))
     return dy
 
 
@@ -221,32 +235,83 @@ def _tick(P, y0, command, v_set, h, count, method):
     k3 = np.empty(size)
     k4 = np.empty(size)
     tmp = np.empty(size)
+    no_rec = np.empty((0, REC))
     half = 0.5 * h
     sixth = h / 6.0
     for _ in range(count):
-        _rhs(P, y, command, v_set, k1)
+        _rhs(P, y, command, v_set, k1, no_rec)
         if method == 0:
             for i in range(size):
                 y[i] = y[i] + h * k1[i]
         elif method == 1:
             for i in range(size):
                 tmp[i] = y[i] + h * k1[i]
-            _rhs(P, tmp, command, v_set, k2)
+            _rhs(P, tmp, command, v_set, k2, no_rec)
             for i in range(size):
                 y[i] = y[i] + half * (k1[i] + k2[i])
         else:
             for i in range(size):
                 tmp[i] = y[i] + half * k1[i]
-            _rhs(P, tmp, command, v_set, k2)
+            _rhs(P, tmp, command, v_set, k2, no_rec)
             for i in range(size):
                 tmp[i] = y[i] + half * k2[i]
-            _rhs(P, tmp, command, v_set, k3)
+            _rhs(P, tmp, command, v_set, k3, no_rec)
             for i in range(size):
                 tmp[i] = y[i] + h * k3[i]
-            _rhs(P, tmp, command, v_set, k4)
+            _rhs(P, tmp, command, v_set, k4, no_rec)
             for i in range(size):
                 y[i] = y[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     return y, _clear(P, y)
+
+
+# per-cart output columns (after the REC columns of _rhs): A, B, C (x, y), hitch angle phi_k, and the
+# speeds s'_Ck = kapC V, s'_Bk = kapB V, th'_k = kapT V
+_AX, _AY, _BX, _BY, _CX, _CY, _PHI, _VC, _VB, _VT = range(REC, REC + 10)
+OUT = REC + 10
+# scalar outputs
+_REAR_X, _REAR_Y, _TRACTION, _MASS, _RES_POWER, _MARGIN, _WRAPPED = range(7)
+SCALARS = 7
+
+
+@njit(cache=True)
+def _outputs(P, y, command, v_set):
+    """sim.evaluate_outputs's numbers for state y: (cart n x OUT, scalars SCALARS), the same
+    arithmetic as geometry.cart_points, chain.chain, Model.terms, geometry.hitch_angles and
+    guards.margin_of. scalars[_WRAPPED] = 1 when a hitch angle lies outside [-pi, pi] (then
+    hitch_angles would wrap it: the caller takes the Python path)."""
+    n = int(P[_N])
+    cart = np.empty((n, OUT))
+    sc = np.zeros(SCALARS)
+    dy = np.empty(y.shape[0])
+    traction, mass = _rhs(P, y, command, v_set, dy, cart)
+    V = y[n + 3]
+    ax, ay = y[0], y[1]
+    res_power = 0.0
+    margin = math.inf
+    for k in range(n):
+        b = HEADER + CART * k
+        th = y[2 + k]
+        ex, ey = math.cos(th), math.sin(th)
+        cart[k, _AX], cart[k, _AY] = ax, ay
+        bx, by = ax - P[b + _LENGTH] * ex, ay - P[b + _LENGTH] * ey
+        cart[k, _BX], cart[k, _BY] = bx, by
+        cart[k, _CX], cart[k, _CY] = bx + P[b + _COM] * ex, by + P[b + _COM] * ey
+        ax, ay = bx - P[b + _HOFF] * ex, by - P[b + _HOFF] * ey
+        cart[k, _VC], cart[k, _VB], cart[k, _VT] = cart[k, _KAPC] * V, cart[k, _KAPB] * V, cart[k, _KAPT] * V
+        res_power += cart[k, _RES] * cart[k, _VB]
+        if k:
+            phi = y[1 + k] - th
+            if not abs(phi) <= math.pi:
+                sc[_WRAPPED] = 1.0
+            cart[k, _PHI] = phi
+            m = min(P[b + _HITCH] - abs(phi), 0.5 * math.pi - abs(cart[k, _PSI]))
+            if m < margin:
+                margin = m
+        else:
+            cart[k, _PHI] = 0.0
+    sc[_REAR_X], sc[_REAR_Y] = ax, ay
+    sc[_TRACTION], sc[_MASS], sc[_RES_POWER], sc[_MARGIN] = traction, mass, res_power, margin
+    return cart, sc
 
 
 # -- the Python face ---------------------------------------------------------------------------
@@ -265,6 +330,9 @@ class CompiledModel:
     def __init__(self, model):
         if not supports(model):
             raise ValueError("the compiled path covers the dynamic level with algorithm 2 only")
+        from ..sim import Outputs  # sim imports this module lazily: no cycle
+
+        self.Outputs = Outputs
         self.model = model
         self.P = pack(model)
         self.size = model.layout.size
@@ -278,6 +346,25 @@ class CompiledModel:
         return _tick(self.P, np.ascontiguousarray(y0, dtype=np.float64), float(command), float(v_set),
                      float(h), int(count), int(method_code))
 
+    def outputs(self, t: float, y, command: float, v_set: float):
+        """sim.evaluate_outputs(model, t, y, command, v_set) from compiled code, as an Outputs whose
+        arrays are views of one array; None when a hitch angle needs wrapping (the caller takes
+        the Python path). test/test_compiled.py holds the two equal."""
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        cart, sc = _outputs(self.P, y, float(command), float(v_set))
+        if sc[_WRAPPED]:
+            return None
+        n = self.model.layout.n
+        V = float(y[n + 3])
+        traction = float(sc[_TRACTION])
+        return self.Outputs(
+            t=t, front=cart[:, _AX:_AY + 1], axle=cart[:, _BX:_BY + 1], com=cart[:, _CX:_CY + 1],
+            rear_hitch=sc[_REAR_X:_REAR_Y + 1], heading=y[2:2 + n].copy(), hitch_angle=cart[1:, _PHI],
+            psi=cart[:, _PSI], com_speed=cart[:, _VC], axle_speed=cart[:, _VB], yaw_rate=cart[:, _VT], speed=V, steering=float(y[n + 2]), command=command,
+            speed_setpoint=v_set, resistance=cart[:, _RES], traction=traction, power=traction * V,
+            resistance_power=float(sc[_RES_POWER]), kinetic_energy=0.5 * float(sc[_MASS]) * V * V,
+            jackknife_margin=float(sc[_MARGIN]))
+
     def warm_up(self, y) -> float:
         """Compile (or load from numba's cache) every kernel for the types the run passes; wall
         seconds it took (about 0 once done in this process)."""
@@ -286,6 +373,7 @@ class CompiledModel:
         for code in sorted(METHOD_CODES.values()):
             self.tick(code, y, 0.0, 0.0, 1e-3, 1)
         self.rhs(y, 0.0, 0.0)
+        _outputs(self.P, y, 0.0, 0.0)
         return time.perf_counter() - t0
 
 

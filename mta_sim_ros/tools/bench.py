@@ -52,7 +52,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     r.add_argument("--keep", metavar="DIR", help="keep the bag and logs in DIR (default: a temp dir, removed)")
     r.add_argument("--stages", action="store_true",
                    help="profile: run the node with timers around each stage of its tick (advance, outputs, "
-                        "messages, markers, publish, serialize, bag write; thread CPU time; garbage collection) "
+                        "encode (CDR templates), markers, publish, bag write; thread CPU time; garbage collection) "
                         "and report where the tick time goes (adds ~1 us per stage to every tick)")
     r.set_defaults(bench_func=realtime_main)
 
@@ -234,7 +234,7 @@ def player_main(argv: list[str]) -> int:
     return 0
 
 
-STAGES = ("advance", "outputs", "messages", "markers", "publish_clock", "publish", "serialize", "bag_write")
+STAGES = ("advance", "outputs", "encode", "markers", "publish_clock", "publish", "bag_write")
 STAGE_COLUMNS = ("wall", "thread_cpu", *STAGES, "gc", "voluntary_cs", "involuntary_cs")
 
 
@@ -276,11 +276,10 @@ def instrumented_node_main(argv: list[str]) -> int:
 
     Simulation.advance = timed("advance", Simulation.advance)
     Simulation.outputs = timed("outputs", Simulation.outputs)
-    ros_msgs.output_messages = timed("messages", ros_msgs.output_messages)
-    ros_msgs.TrainMarkers.update = timed("markers", ros_msgs.TrainMarkers.update)
+    ros_msgs.OutputEncoder.encode = timed("encode", ros_msgs.OutputEncoder.encode)
+    ros_msgs.TrainMarkers.encode = timed("markers", ros_msgs.TrainMarkers.encode)
     publish, publish_clock = timed("publish", Publisher.publish), timed("publish_clock", Publisher.publish)
     Publisher.publish = lambda self, msg: (publish_clock if self.topic_name == "/clock" else publish)(self, msg)
-    node_module.serialize_message = timed("serialize", node_module.serialize_message)
     RunRecorder.write = timed("bag_write", RunRecorder.write)
 
     def on_gc(phase, info):
@@ -341,7 +340,7 @@ def stage_report(path: Path) -> tuple[list[str], list[str]]:
     labels = {"wall": "whole tick (wall)", "thread_cpu": "thread CPU time", "not on CPU": "wall - CPU (preempted)",
               "other": "rest of _on_tick", "gc": "of which garbage collection", "bag_write": "bag write",
               "publish": "publish, other topics (rclpy)", "publish_clock": "publish /clock (rclpy)",
-              "serialize": "serialize (for the bag)"}
+              "encode": "encode (CDR templates)", "markers": "markers (encode, at marker_rate)"}
     for name in order:
         v = cols[name] * 1e6
         row = (np.median(v), v.mean(), np.percentile(v, 99.9), v[slow99].mean(), v[slow].mean())
@@ -503,8 +502,8 @@ def realtime_main(args: argparse.Namespace) -> int:
         f"/clock message, the table at sim time mod {loop_period(scene):g} s), until the sim time reaches "
         f"{args.duration:g} s; then SIGTERM to the node.",
         "- figures: the node's own whole-run tick statistics, read from the bag's metadata record "
-        "`mta_sim_ros.run` (compute time of `_on_tick`: advance, outputs, messages, markers, publish, "
-        "serialize and record; histogram percentiles within 0.5 %).",
+        "`mta_sim_ros.run` (compute time of `_on_tick`: advance, outputs, encode the messages, markers, "
+        "publish and record; histogram percentiles within 0.5 %).",
         "- both processes: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, their own ROS_DOMAIN_ID.",
         "",
         "## Result", "",

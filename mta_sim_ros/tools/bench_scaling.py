@@ -4,11 +4,11 @@ DDS): measurements, not tests. Prints progress to stderr; writes Markdown and PN
 
 (a) Tick compute time against n carts (1..100) and publish rate (50, 100, 200 Hz): the work of
     the node's ``_on_tick`` (node.py) without the middleware: ``Simulation.advance`` (rk4, step
-    0.01 s, plus the validity check), ``Simulation.outputs`` (= ``evaluate_outputs``),
-    ``ros_msgs.output_messages``, ``ros_msgs.TrainMarkers.update`` every publish_rate / 10 Hz ticks,
-    ``rclpy.serialization.serialize_message`` once per message, and the bag write of those bytes
-    (``RunRecorder.write``, MCAP) together with the two commands a steering player sends per tick
-    (serialized and recorded as the node records them). Not included: ``Publisher.publish`` (DDS)
+    0.01 s, plus the validity check), ``Simulation.outputs`` (compiled, as ``evaluate_outputs``),
+    ``ros_msgs.OutputEncoder.encode`` (the messages' CDR bytes from templates),
+    ``ros_msgs.TrainMarkers.encode`` every publish_rate / 10 Hz ticks, and the bag write of those
+    bytes (``RunRecorder.write``, MCAP, on the tick's thread) together with the two commands a
+    steering player sends per tick (serialized by rclpy and recorded as the node records them). Not included: ``Publisher.publish`` (DDS)
     and the 1 Hz diagnostics. Ticks run back to back; per tick the wall time (perf_counter) and the
     thread's CPU time (thread_time) are recorded.
     max real-time factor := tick / p99(tick compute wall time): the factor by which a node could
@@ -139,7 +139,8 @@ def bench_scene(train, rate: float, duration: float):
 # -- the tick --------------------------------------------------------------------------------
 
 class Ticker:
-    """The node's tick without DDS: advance, outputs, messages (+ markers), serialize, bag write.
+    """The node's tick without DDS: advance, outputs, encode the messages (+ markers; CDR templates,
+    as the node does), serialize the two commands a player sends, bag write.
     The scene's tables are looped (sim time modulo STEER_PERIOD)."""
 
     def __init__(self, n: int, rate: float, bag_dir: str | None, duration: float = 1e9):
@@ -158,8 +159,9 @@ class Ticker:
         self.names = [c.name for c in self.train.carts]
         self.marker_every = max(1, round(rate / MARKER_RATE))
         self.since_markers = 0
-        self.markers = ros_msgs.TrainMarkers(self.train, "map")  # built once, redrawn (as the node does)
-        self.ros_msgs, self.serialize, self.Float64 = ros_msgs, serialize_message, Float64
+        self.encoder = ros_msgs.OutputEncoder(self.names, "map")  # CDR templates, as the node's tick
+        self.markers = ros_msgs.TrainMarkers(self.train, "map")
+        self.serialize, self.Float64 = serialize_message, Float64
         self.recorder = None
         if bag_dir is not None:
             topics = {qualified(t): ty for t, ty in TOPICS.items()}
@@ -188,17 +190,17 @@ class Ticker:
         t1 = perf()
         out = self.sim.outputs()
         t2 = perf()
-        msgs = self.ros_msgs.output_messages(out, self.names, "map")
+        msgs = self.encoder.encode(out)
         self.since_markers += 1
         self.marker_tick = self.since_markers >= self.marker_every
         if self.marker_tick:
             self.since_markers = 0
-            msgs["/markers"] = self.markers.update(out)
+            msgs["/markers"] = self.markers.encode(out)
         t3 = perf()
         # the two commands a player sends per tick, recorded as received; then the outputs
         data = [("/steering_angle", self.serialize(self.Float64(data=command))),
                 ("/speed_setpoint", self.serialize(self.Float64(data=v_set)))]
-        data += [(topic if topic.startswith("/") else "/" + topic, self.serialize(msg)) for topic, msg in msgs.items()]
+        data += [(topic if topic.startswith("/") else "/" + topic, cdr) for topic, cdr in msgs.items()]
         t4 = perf()
         if self.recorder is not None:
             ns = round(out.t * 1e9)
@@ -521,14 +523,14 @@ def report(cases, paced, frozen, rhs, long, pngs, head) -> list[str]:
     ms = lambda s: f"{s * 1e3:.3f}"  # noqa: E731
     L = head + [
         "Offline (no DDS), see the docstring of `mta_sim_ros/tools/bench_scaling.py` for what a tick holds: "
-        "advance (rk4, step 0.01 s, + validity check), outputs, ROS messages (+ markers at 10 Hz), "
-        "serialize once, MCAP bag write of the outputs and of two received commands. Not `publish`.", "",
+        "advance (rk4, step 0.01 s, + validity check), outputs, the messages' CDR bytes (+ markers at 10 Hz), "
+        "two received commands serialized, MCAP bag write of all of them on the tick's thread. Not `publish`.", "",
         "Definitions: **max real-time factor** (max RTF) := tick / p99 of the tick compute wall time, ticks back "
         "to back: how much faster than real time the node could run with 99 % of its ticks inside their period. "
         "**by CPU**: the same with the tick thread's CPU time (thread_time), which leaves out preemption by "
         "other processes (this 2-core machine is shared: wall-time tails are mostly other processes' work). "
         "**sustained RTF** := tick / mean thread CPU time per tick (simulated seconds per CPU second). "
-        "**marker ticks**: every publish_rate / 10 Hz-th tick also builds and serializes the MarkerArray.", "",
+        "**marker ticks**: every publish_rate / 10 Hz-th tick also encodes the MarkerArray.", "",
         f"![tick compute and max real-time factor against carts]({pngs[0]})", "",
         "## (a) Tick compute time against carts and publish rate (ticks back to back)", "",
         "| carts | rate, Hz | p50, ms | p99, ms | p99.9, ms | max, ms | p99 / tick | max RTF | max RTF by CPU | "
