@@ -179,13 +179,13 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self.recorder = None
-        self.bag_names: dict[str, str] = {}  # topic -> its name in the bag (qualified in the namespace)
+        self.logged_bag_error = ""
         if self.cfg["record"]:
-            topics = {qualified(t, self.get_namespace()): ty for t, ty in TOPICS.items()}
-            topics[qualified("markers", self.get_namespace())] = MARKERS_TYPE
-            topics["/diagnostics"] = DIAGNOSTICS_TYPE
-            topics[qualified(WATCHDOG_TOPIC, self.get_namespace())] = WATCHDOG_TYPE
-            self.recorder = RunRecorder(self.cfg["bag_dir"], topics, self._run_metadata())
+            local = {**TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE, WATCHDOG_TOPIC: WATCHDOG_TYPE}
+            in_bag = {t: qualified(t, self.get_namespace()) for t in local}  # e.g. hitch_poses -> /unit1/hitch_poses
+            # background: the MCAP writing runs on a thread of its own, off the tick (recorder.py)
+            self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in local.items()},
+                                        self._run_metadata(), background=True, rename=in_bag)
             self._start_bag()
 
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -244,10 +244,12 @@ class SimNode(Node):
         if self.ticks_since_markers >= self.marker_every:
             self.ticks_since_markers = 0
             msgs["markers"] = self.markers.encode(out)
-        stamp_ns = round(self.now * 1e9)
         for topic, data in msgs.items():
             self.pubs[topic].publish(data)
-            self._record(topic, data, stamp_ns)
+        if self.recorder is not None and self.recorder.recording:  # the same bytes, to the bag writer's thread
+            self.recorder.write_batch(msgs, round(self.now * 1e9))
+        else:
+            self._record({})  # says a recording error once
         cpu = time.thread_time() - cpu_started
         self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
         self.cpu_stats.record(cpu)
@@ -265,17 +267,22 @@ class SimNode(Node):
         straight = timeout > 0 and self.steering.age() > timeout and self.cfg["watchdog_action"] == "straight"
         if straight != self.watchdog_straight:
             self.watchdog_straight = straight
-            self._record(WATCHDOG_TOPIC, Float64(data=0.0 if straight else self.steering.value))
+            self._record({WATCHDOG_TOPIC: Float64(data=0.0 if straight else self.steering.value)})
         return 0.0 if straight else self.steering.value
 
-    def _record(self, topic: str, msg, stamp_ns: int | None = None) -> None:
-        """Log a message (or its CDR bytes) at the current simulation time (or ``stamp_ns``)."""
-        if self.recorder is not None and self.recorder.recording:
-            data = msg if isinstance(msg, bytes) else serialize_message(msg)
-            name = self.bag_names.get(topic) or self.bag_names.setdefault(topic, qualified(topic, self.get_namespace()))
-            self.recorder.write(name, data, round(self.now * 1e9) if stamp_ns is None else stamp_ns)
-            if self.recorder.error:
-                self.get_logger().error(self.recorder.error)
+    def _record(self, msgs: dict) -> None:
+        """Log messages (topic -> message or its CDR bytes) at the current simulation time. The
+        writing happens on the recorder's thread, so a failure (disk full) shows up here later:
+        it is logged once, at the first message after it."""
+        recorder = self.recorder
+        if recorder is None:
+            return
+        if recorder.recording:
+            recorder.write_batch({topic: msg if isinstance(msg, bytes) else serialize_message(msg)
+                                  for topic, msg in msgs.items()}, round(self.now * 1e9))
+        elif recorder.error and recorder.error != self.logged_bag_error:
+            self.logged_bag_error = recorder.error
+            self.get_logger().error(recorder.error)
 
     # -- commands --------------------------------------------------------------------------
     def _on_steering(self, msg: Float64) -> None:
@@ -285,7 +292,7 @@ class SimNode(Node):
         self._take(self.speed, msg, "speed_setpoint")
 
     def _take(self, inp: CommandInput, msg: Float64, topic: str) -> None:
-        self._record(topic, msg)  # every command as received, at the simulation time it arrived
+        self._record({topic: msg})  # every command as received, at the simulation time it arrived
         if inp.take(msg.data) != msg.data:  # rejected (None) or clamped
             self.get_logger().warning(inp.last_problem, throttle_duration_sec=1.0)
 
@@ -374,6 +381,7 @@ class SimNode(Node):
         self.recorder.metadata["clock_offset"] = repr(self.clock_offset)
         path = self.recorder.start()
         if path is None:
+            self.logged_bag_error = self.recorder.error
             self.get_logger().error(self.recorder.error)
         else:
             self.get_logger().info(f"recording {path}")
@@ -418,13 +426,15 @@ class SimNode(Node):
         msg = ros_msgs.diagnostic_array(self.now, f"{self.get_name()}: simulation", level,
                                         "; ".join(problems) or "running", values)
         self.pubs["/diagnostics"].publish(msg)
-        self._record("/diagnostics", msg)
+        self._record({"/diagnostics": msg})
 
     def run_figures(self) -> dict[str, str]:
         """Whole-run tick compute statistics (s) and deadline misses, as strings."""
         figures = {f"tick_{k}": repr(v) for k, v in self.stats.summary().items() if not k.startswith("window")}
         figures.update({f"tick_cpu_{k}": repr(v) for k, v in self.cpu_stats.summary().items()
                         if k in ("p50", "p99", "p99.9", "max")})
+        if self.recorder is not None:  # the bag writer's own thread: off the tick, not in tick_*
+            figures["recorder_thread_cpu"] = repr(self.recorder.thread_cpu)
         figures.update(sim_time=repr(self.now), tick_period=repr(self.period),
                        run_sim_time=repr(self.sim.t), run_wall_time=repr(time.monotonic() - self.run_started))
         return figures

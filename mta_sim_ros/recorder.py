@@ -4,10 +4,20 @@ No ROS imports: the node hands over topic names, types and CDR bytes. Writing ne
 simulator down: the first error (disk full, a dir that cannot be written) closes the bag so that
 what reached it stays readable (``mta recover`` rebuilds it if even the footer could not be
 written), stops recording, and is reported through ``error``.
+
+With ``background=True`` (the node) the MCAP work happens on a thread of its own: ``write`` and
+``write_batch`` only queue the bytes and return, so building the records (~10 us a message in the
+mcap library) and compressing each chunk stay off the simulation's tick. The thread runs while the
+tick's thread waits for its next timer; ``start`` and ``close`` first wait until everything queued
+is written, so a closed bag holds every message handed over before. After SIGKILL what was still
+queued is lost with the open chunk, which was lost before too.
 """
 from __future__ import annotations
 
 import datetime
+import queue
+import threading
+import time
 import uuid
 from pathlib import Path
 
@@ -15,20 +25,31 @@ from .bag import BagError, BagWriter
 
 
 class RunRecorder:
-    def __init__(self, bag_dir: str, topics: dict[str, str], metadata: dict[str, str]):
+    def __init__(self, bag_dir: str, topics: dict[str, str], metadata: dict[str, str], background: bool = False,
+                 rename: dict[str, str] | None = None):
         """``topics``: fully qualified name -> type (pkg/msg/Name); ``metadata``: the run's
-        description (files, parameters, version), stored as the metadata record mta_sim_ros."""
+        description (files, parameters, version), stored as the metadata record mta_sim_ros;
+        ``background``: write on a thread of its own (see the module docstring); ``rename``: names
+        the caller writes under -> their topic in the bag (the node's relative names -> names
+        qualified in its namespace), resolved on the writing thread."""
         self.bag_dir = Path(bag_dir)
         self.topics = dict(topics)
+        self.rename = dict(rename or {})
         self.metadata = dict(metadata)
         self.writer: BagWriter | None = None
         self.path: Path | None = None
         self.error: str = ""
         self.messages = 0
+        self.thread_cpu = 0.0  # s of CPU the writing took on the background thread (this bag)
+        self._queue: queue.SimpleQueue | None = None
+        if background:
+            self._queue = queue.SimpleQueue()
+            threading.Thread(target=self._drain, name="bag writer", daemon=True).start()
 
     def start(self) -> Path | None:
         """Open a new bag for a new run (closing the previous one)."""
         self.close()
+        self.thread_cpu = 0.0
         stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
         self.path = self.bag_dir / f"{stamp}_{uuid.uuid4().hex[:8]}.mcap"
         self.messages = 0
@@ -48,17 +69,55 @@ class RunRecorder:
         return self.writer is not None
 
     def write(self, topic: str, cdr: bytes, log_time_ns: int) -> None:
+        self.write_batch(((topic, cdr),), log_time_ns)
+
+    def write_batch(self, messages, log_time_ns: int) -> None:
+        """Log messages, all at ``log_time_ns``: a dict topic -> CDR bytes, or (topic, bytes)
+        pairs. With ``background`` the container is handed over as it is: do not change it."""
         if self.writer is None:
             return
+        if self._queue is not None:
+            self._queue.put((self.writer, messages, log_time_ns))
+        else:
+            self._write(self.writer, messages, log_time_ns)
+
+    def _write(self, writer: BagWriter, messages, log_time_ns: int) -> None:
+        if writer is not self.writer:  # queued for a bag that has failed since
+            return
+        rename = self.rename
         try:
-            self.writer.write_raw(topic, cdr, log_time_ns)
-            self.messages += 1
+            for topic, cdr in (messages.items() if isinstance(messages, dict) else messages):
+                writer.write_raw(rename.get(topic, topic), cdr, log_time_ns)
+                self.messages += 1
         except BagError as err:
             self._fail(err)
+
+    def _drain(self) -> None:
+        """The background thread: write what is queued, in order; an Event in the queue is set
+        once everything before it is written (``_sync``)."""
+        while True:
+            item = self._queue.get()
+            if isinstance(item, threading.Event):
+                item.set()
+                continue
+            started = time.thread_time()
+            try:
+                self._write(*item)
+            except Exception as err:  # noqa: BLE001 - never let the thread die: stop recording, say why
+                self._fail(err)
+            self.thread_cpu += time.thread_time() - started
+
+    def _sync(self) -> None:
+        """Wait until everything queued so far is written."""
+        if self._queue is not None:
+            done = threading.Event()
+            self._queue.put(done)
+            done.wait()
 
     def close(self, closing_metadata: dict[str, str] | None = None) -> None:
         """Finish the bag; ``closing_metadata`` (figures known only at the end, such as the tick
         statistics) goes in as the metadata record ``mta_sim_ros.run``."""
+        self._sync()
         if self.writer is not None and closing_metadata:
             try:
                 self.writer.add_metadata("mta_sim_ros.run", closing_metadata)

@@ -171,15 +171,19 @@ class CdrTemplate:
             raise ValueError(f"{self.type_name} template: {what} found {len(found)} times, expected {count}")
         return found
 
-    def fill(self, values, t_seconds: float | None = None) -> bytes:
+    def fill(self, values, sec_nanosec: tuple[int, int] | None = None) -> bytes:
         """The CDR bytes of the message with these values (in sentinel order) and every stamp set
-        to ``t_seconds`` (rounded to the nanosecond like ``bag.writer.stamp``)."""
+        to ``sec_nanosec`` (see :func:`stamp_of`)."""
         self.f64[self.values] = values
-        if t_seconds is not None:
-            sec, nanosec = divmod(round(t_seconds * 1e9), 10**9)
-            self.u32[self.sec] = sec & 0xFFFF_FFFF  # int32 sec, two's complement
-            self.u32[self.nanosec] = nanosec
+        if sec_nanosec is not None:
+            self.u32[self.sec] = sec_nanosec[0] & 0xFFFF_FFFF  # int32 sec, two's complement
+            self.u32[self.nanosec] = sec_nanosec[1]
         return bytes(self.buf)
+
+
+def stamp_of(t_seconds: float) -> tuple[int, int]:
+    """(sec, nanosec) of ``t_seconds``, rounded to the nanosecond like ``bag.writer.stamp``."""
+    return divmod(round(t_seconds * 1e9), 10**9)
 
 
 class OutputEncoder:
@@ -204,7 +208,7 @@ class OutputEncoder:
         """topic -> CDR bytes, the topics and values of :func:`output_messages`."""
         if len(out.heading) != self.n:
             raise ValueError(f"OutputEncoder: {self.n} cart names for {len(out.heading)} carts")
-        t, v = out.t, self.pose_values
+        t, v = stamp_of(out.t), self.pose_values
         v[:, :2] = out.front
         for k, th in enumerate(out.heading.tolist()):  # yaw_quaternion's math, bit for bit
             v[k, 2], v[k, 3] = math.sin(th / 2.0), math.cos(th / 2.0)
@@ -306,7 +310,7 @@ class TrainMarkers:
 
     def encode(self, out) -> bytes:
         """The CDR bytes of ``update(out)``, without touching the message objects."""
-        return self.template.fill(self._coordinates(out), out.t)
+        return self.template.fill(self._coordinates(out), stamp_of(out.t))
 
     def _set(self, sec_nanosec, xy: list[float]) -> None:
         for s in self.stamps:

@@ -280,7 +280,7 @@ def instrumented_node_main(argv: list[str]) -> int:
     ros_msgs.TrainMarkers.encode = timed("markers", ros_msgs.TrainMarkers.encode)
     publish, publish_clock = timed("publish", Publisher.publish), timed("publish_clock", Publisher.publish)
     Publisher.publish = lambda self, msg: (publish_clock if self.topic_name == "/clock" else publish)(self, msg)
-    RunRecorder.write = timed("bag_write", RunRecorder.write)
+    RunRecorder.write_batch = timed("bag_write", RunRecorder.write_batch)
 
     def on_gc(phase, info):
         if not state["in_tick"]:
@@ -338,7 +338,7 @@ def stage_report(path: Path) -> tuple[list[str], list[str]]:
     md = [header, "|---|---:|---:|---:|---:|---:|"]
     text = [f"  {'stage':<12} {'median':>9} {'mean':>9} {'p99.9':>9} {'slow 1%':>9} {'slow 0.1%':>9}  (us)"]
     labels = {"wall": "whole tick (wall)", "thread_cpu": "thread CPU time", "not on CPU": "wall - CPU (preempted)",
-              "other": "rest of _on_tick", "gc": "of which garbage collection", "bag_write": "bag write",
+              "other": "rest of _on_tick", "gc": "of which garbage collection", "bag_write": "bag (hand-over to its thread)",
               "publish": "publish, other topics (rclpy)", "publish_clock": "publish /clock (rclpy)",
               "encode": "encode (CDR templates)", "markers": "markers (encode, at marker_rate)"}
     for name in order:
@@ -463,6 +463,10 @@ def realtime_main(args: argparse.Namespace) -> int:
         if f"tick_cpu_{key}" in f:
             v = f[f"tick_cpu_{key}"]
             rows.append((f"tick thread CPU time {key}", f"{v * 1e3:.3f} ms", f"{100 * v / tick:.1f} % of the tick"))
+    if "recorder_thread_cpu" in f and n:  # the MCAP writing, on the bag writer's own thread (not in the tick)
+        v = f["recorder_thread_cpu"] / n
+        rows.append(("bag writer thread CPU per tick (mean; off the tick)", f"{v * 1e3:.3f} ms",
+                     f"{100 * v / tick:.1f} % of the tick"))
     rows += [
         ("deadline misses (compute > tick period)", f"{misses}",
          f"tick period {f.get('tick_period', math.nan) * 1e3:.2f} ms"),

@@ -1,0 +1,108 @@
+"""RunRecorder (the node's run log), written on its background thread as the node uses it.
+
+- Everything handed over before ``close`` is in the bag, in order, read back by rosbags (an
+  independent reader), with the closing metadata after it; a reset (``start`` again) splits the
+  messages between two bags exactly where it happened.
+- A failure on the background thread (the bag's write raising, as on a full disk; or an
+  unexpected exception) stops recording with the error said, keeps what was written readable,
+  and neither ``write`` nor ``close`` blocks or raises afterwards.
+No ROS node is started.
+"""
+from __future__ import annotations
+
+import struct
+import threading
+
+import pytest
+from rosbags.highlevel import AnyReader
+
+from mta_sim_ros.bag import BagError, BagWriter, read_metadata, recover
+from mta_sim_ros.recorder import RunRecorder
+
+TOPICS = {"/traction_power": "std_msgs/msg/Float64", "/applied_steering": "std_msgs/msg/Float64"}
+
+
+def float64(x: float) -> bytes:
+    return b"\x00\x01\x00\x00" + struct.pack("<d", x)
+
+
+def read(path):
+    """(topic, log time, data) of every message, by rosbags."""
+    with AnyReader([path]) as reader:
+        return [(c.topic, t, reader.deserialize(raw, c.msgtype).data) for c, t, raw in reader.messages()]
+
+
+def write_ticks(rec: RunRecorder, first: int, count: int) -> None:
+    for i in range(first, first + count):
+        rec.write_batch([("/traction_power", float64(1000.0 * i)), ("/applied_steering", float64(-i / 7))], i * 10**7)
+
+
+def test_everything_handed_over_is_in_the_bag_in_order(tmp_path):
+    rec = RunRecorder(str(tmp_path), TOPICS, {"scene": "x"}, background=True)
+    first = rec.start()
+    write_ticks(rec, 0, 3000)
+    rec.write("/traction_power", float64(-1.0), 3000 * 10**7)
+    rec.close({"tick_count": "3000"})  # returns once the thread has written all of it
+    assert rec.messages == 6001 and rec.error == "" and rec.thread_cpu > 0
+    got = read(first)
+    want = [(t, i * 10**7, v) for i in range(3000)
+            for t, v in (("/traction_power", 1000.0 * i), ("/applied_steering", -i / 7))]
+    assert got == want + [("/traction_power", 3000 * 10**7, -1.0)]
+    meta = read_metadata(first)
+    assert meta["mta_sim_ros"] == {"scene": "x"} and meta["mta_sim_ros.run"] == {"tick_count": "3000"}
+
+
+def test_a_reset_splits_the_messages_between_two_bags(tmp_path):
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    first = rec.start()
+    write_ticks(rec, 0, 500)
+    second = rec.start()  # what the node's reset does: close this run's bag, open the next
+    write_ticks(rec, 500, 700)
+    rec.close()
+    assert first != second
+    assert [t for _, t, _ in read(first)] == [i * 10**7 for i in range(500) for _ in range(2)]
+    assert [t for _, t, _ in read(second)] == [i * 10**7 for i in range(500, 1200) for _ in range(2)]
+
+
+@pytest.mark.parametrize("failure", [BagError("disk full (simulated)"), TypeError("unexpected (simulated)")])
+def test_a_failure_on_the_writer_thread_stops_recording_and_keeps_the_bag(tmp_path, monkeypatch, failure):
+    """After 2000 messages every write raises. The error is reported, later writes are dropped
+    without blocking, close returns, and what reached the file is readable after recover."""
+    original = BagWriter.write_raw
+    calls = {"n": 0}
+
+    def failing(self, *args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > 2000:
+            raise failure
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(BagWriter, "write_raw", failing)
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    path = rec.start()
+    write_ticks(rec, 0, 1500)  # 3000 messages
+    rec._sync()
+    assert "recording stopped" in rec.error and str(failure) in rec.error
+    assert not rec.recording and rec.messages == 2000
+    done = threading.Event()
+    threading.Thread(target=lambda: (write_ticks(rec, 1500, 10), rec.close(), done.set()), daemon=True).start()
+    assert done.wait(10.0), "write or close blocked after the failure"
+    monkeypatch.undo()  # recover writes with BagWriter too
+    fixed = tmp_path / "fixed.mcap"
+    recover(path, fixed)
+    got = read(fixed)
+    assert 0 < len(got) <= 2000
+    assert got == [(t, i * 10**7, v) for i in range(1000)
+                   for t, v in (("/traction_power", 1000.0 * i), ("/applied_steering", -i / 7))][:len(got)]
+
+
+def test_renamed_topics_land_under_their_bag_names(tmp_path):
+    """The node writes under its relative names (a dict per tick); the bag has the names it was
+    given for them (qualified in the node's namespace)."""
+    topics = {"/unit1/traction_power": "std_msgs/msg/Float64", "/clock_like": "std_msgs/msg/Float64"}
+    rec = RunRecorder(str(tmp_path), topics, {}, background=True,
+                      rename={"traction_power": "/unit1/traction_power"})
+    path = rec.start()
+    rec.write_batch({"traction_power": float64(5.0), "/clock_like": float64(6.0)}, 10)
+    rec.close()
+    assert read(path) == [("/unit1/traction_power", 10, 5.0), ("/clock_like", 10, 6.0)]
