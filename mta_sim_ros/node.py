@@ -44,7 +44,7 @@ from .model.guards import ModelValidityError
 from .model.loader import SpecError, load_scene
 from .recorder import RunRecorder
 from .sim import Simulation
-from .timing import TickStats
+from .timing import TickStats, reserve_cpu
 from .topics import TOPICS, WATCHDOG_TOPIC, WATCHDOG_TYPE, qualified
 
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -108,6 +108,8 @@ PARAMS = (
     Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
     Param("record", True, "write every run to an MCAP bag", live=False),
     Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),
+    Param("tick_cpu", -1, "CPU for the tick's thread alone (the node's other threads move off it; start "
+          "other processes elsewhere for a reserved core); -1 = no pinning", live=False, low=-1, high=4095),
     Param("fidelity", "", "model level: '' = the scene's (auto: the cheapest meeting its needs), or auto, "
           "kinematic, dynamic, slip; a change applies at the next reset", live=True,
           choices=("", "auto", "kinematic", "dynamic", "slip")),
@@ -491,6 +493,15 @@ def main(argv: list[str] | None = None) -> int:
     # measured; 0.2-2 ms frozen, docs/benchmarks/scaling.md).
     gc.collect()
     gc.freeze()
+    if node.cfg["tick_cpu"] >= 0:  # after every thread of the node exists
+        try:
+            node.get_logger().info(reserve_cpu(node.cfg["tick_cpu"]))
+        except (ValueError, OSError) as err:
+            print(f"sim_node: {err}", file=sys.stderr)
+            node.close()
+            node.destroy_node()
+            rclpy.try_shutdown()
+            return 2
     try:
         while not stop and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)

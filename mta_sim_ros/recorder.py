@@ -6,22 +6,29 @@ what reached it stays readable (``mta recover`` rebuilds it if even the footer c
 written), stops recording, and is reported through ``error``.
 
 With ``background=True`` (the node) the MCAP work happens on a thread of its own: ``write`` and
-``write_batch`` only queue the bytes and return, so building the records (~10 us a message in the
-mcap library) and compressing each chunk stay off the simulation's tick. The thread runs while the
-tick's thread waits for its next timer; ``start`` and ``close`` first wait until everything queued
-is written, so a closed bag holds every message handed over before. After SIGKILL what was still
-queued is lost with the open chunk, which was lost before too.
+``write_batch`` only append the bytes to a deque and return, so building the records (~10 us a
+message in the mcap library) and compressing each chunk stay off the simulation's tick. The tick
+never wakes that thread: it looks at the deque every POLL_SECONDS by itself (the pattern of
+realtime_tools' RealtimePublisher, whose non-real-time thread polls instead of being signalled by
+the real-time one). Signalling it from the tick (a queue put per tick) let the scheduler run the
+woken thread in the middle of the tick: in the node's benchmark the slowest 0.1 % of ticks then
+lost ~1 ms inside that put, off the CPU. ``start`` and ``close`` first wait until everything
+handed over is written, so a closed bag holds every message handed over before. After SIGKILL
+what was still waiting (at most POLL_SECONDS of messages) is lost with the open chunk.
 """
 from __future__ import annotations
 
+import collections
 import datetime
-import queue
 import threading
 import time
 import uuid
 from pathlib import Path
 
 from .bag import BagError, BagWriter
+
+#: How often the background thread looks for messages to write, s.
+POLL_SECONDS = 0.02
 
 
 class RunRecorder:
@@ -41,9 +48,9 @@ class RunRecorder:
         self.error: str = ""
         self.messages = 0
         self.thread_cpu = 0.0  # s of CPU the writing took on the background thread (this bag)
-        self._queue: queue.SimpleQueue | None = None
+        self._pending: collections.deque | None = None  # handed over, not yet written (background)
         if background:
-            self._queue = queue.SimpleQueue()
+            self._pending = collections.deque()
             threading.Thread(target=self._drain, name="bag writer", daemon=True).start()
 
     def start(self) -> Path | None:
@@ -76,8 +83,8 @@ class RunRecorder:
         pairs. With ``background`` the container is handed over as it is: do not change it."""
         if self.writer is None:
             return
-        if self._queue is not None:
-            self._queue.put((self.writer, messages, log_time_ns))
+        if self._pending is not None:
+            self._pending.append((self.writer, messages, log_time_ns))  # no wake-up: the thread polls
         else:
             self._write(self.writer, messages, log_time_ns)
 
@@ -93,25 +100,28 @@ class RunRecorder:
             self._fail(err)
 
     def _drain(self) -> None:
-        """The background thread: write what is queued, in order; an Event in the queue is set
-        once everything before it is written (``_sync``)."""
+        """The background thread: every POLL_SECONDS, write what was handed over, in order; an
+        Event among it is set once everything before it is written (``_sync``)."""
+        pending = self._pending
         while True:
-            item = self._queue.get()
-            if isinstance(item, threading.Event):
-                item.set()
-                continue
+            time.sleep(POLL_SECONDS)
             started = time.thread_time()
-            try:
-                self._write(*item)
-            except Exception as err:  # noqa: BLE001 - never let the thread die: stop recording, say why
-                self._fail(err)
+            while pending:
+                item = pending.popleft()
+                if isinstance(item, threading.Event):
+                    item.set()
+                    continue
+                try:
+                    self._write(*item)
+                except Exception as err:  # noqa: BLE001 - never let the thread die: stop recording, say why
+                    self._fail(err)
             self.thread_cpu += time.thread_time() - started
 
     def _sync(self) -> None:
-        """Wait until everything queued so far is written."""
-        if self._queue is not None:
+        """Wait until everything handed over so far is written."""
+        if self._pending is not None:
             done = threading.Event()
-            self._queue.put(done)
+            self._pending.append(done)
             done.wait()
 
     def close(self, closing_metadata: dict[str, str] | None = None) -> None:

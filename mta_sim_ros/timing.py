@@ -8,6 +8,8 @@ steady wall clock.
 from __future__ import annotations
 
 import math
+import os
+import threading
 import time
 from bisect import bisect_right
 from collections import deque
@@ -198,3 +200,31 @@ class RealTimeFactor:
         wall0, sim0 = self._marks[0]
         wall, sim = self._latest
         return (sim - sim0) / (wall - wall0) if wall > wall0 else math.nan
+
+
+def reserve_cpu(cpu: int) -> str:
+    """Give the calling thread (the node's executor, which runs the tick) the CPU ``cpu`` to
+    itself within this process: pin it there and move the process's other threads (DDS, the bag
+    writer) to the remaining CPUs. Other processes are not moved: start them elsewhere (taskset)
+    for a core truly reserved. Linux only; no privileges needed. Returns what it did.
+
+    Raises:
+        ValueError: ``cpu`` is not one this process may run on, or it is the only one.
+    """
+    allowed = os.sched_getaffinity(0)
+    if cpu not in allowed:
+        raise ValueError(f"tick_cpu: CPU {cpu} is not available to this process (available: {sorted(allowed)})")
+    if len(allowed) < 2:
+        raise ValueError(f"tick_cpu: CPU {cpu} is the only one available; nothing could move off it")
+    others = allowed - {cpu}
+    me = threading.get_native_id()
+    moved = 0
+    for tid in (int(t) for t in os.listdir("/proc/self/task")):
+        if tid != me:
+            try:
+                os.sched_setaffinity(tid, others)
+                moved += 1
+            except ProcessLookupError:  # the thread ended meanwhile
+                pass
+    os.sched_setaffinity(0, {cpu})  # 0 = the calling thread (Linux)
+    return f"tick thread pinned to CPU {cpu}; {moved} other threads of the node on CPUs {sorted(others)}"

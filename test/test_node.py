@@ -284,6 +284,7 @@ def test_a_jackknife_halts_the_model_not_the_node(tmp_path, probe):
     (dict(integrator_method="RK99"), "integrator_method"),
     (dict(scene_file="/nowhere/scene.yaml"), "scene_file"),
     (dict(publish_rate=10.0, integrator_step=0.5), "integrator_step"),
+    (dict(tick_cpu=4000), "tick_cpu"),  # in range, but no such CPU here
 ])
 def test_invalid_parameters_stop_the_start_with_one_message(tmp_path, bad, expected):
     node = start_node(params(tmp_path, **bad), tmp_path / "node.log")

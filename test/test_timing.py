@@ -207,3 +207,45 @@ def test_real_time_factor_bad_arguments():
         RealTimeFactor(window=0.0)
     with pytest.raises(ValueError):
         RealTimeFactor(marks=0)
+
+
+RESERVE = """
+import json, os, threading, time
+from mta_sim_ros.timing import reserve_cpu
+stop = threading.Event()
+other = threading.Thread(target=stop.wait)
+other.start()
+time.sleep(0.05)
+cpus = sorted(os.sched_getaffinity(0))
+try:
+    note = reserve_cpu(cpus[-1])
+    result = {"note": note, "main": sorted(os.sched_getaffinity(0)),
+              "other": sorted(os.sched_getaffinity(other.native_id)), "cpus": cpus}
+except ValueError as err:
+    result = {"error": str(err), "cpus": cpus}
+stop.set()
+print(json.dumps(result))
+"""
+
+
+def test_reserve_cpu_pins_the_tick_thread_and_moves_the_others_off_it():
+    """In a child process (pytest's own affinity stays): the calling thread ends up on the
+    chosen CPU alone, every other thread of the process on the remaining CPUs; on a one-CPU
+    machine it refuses, saying why. A CPU the process may not use is refused, naming it."""
+    import json
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", RESERVE], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    r = json.loads(done.stdout)
+    if len(r["cpus"]) < 2:
+        assert "the only one available" in r["error"]
+    else:
+        assert r["main"] == [r["cpus"][-1]]
+        assert r["other"] == r["cpus"][:-1] and r["cpus"][-1] not in r["other"]
+        assert f"CPU {r['cpus'][-1]}" in r["note"]
+    from mta_sim_ros.timing import reserve_cpu
+
+    with pytest.raises(ValueError, match="tick_cpu: CPU 4095 is not available"):
+        reserve_cpu(4095)

@@ -50,6 +50,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     r.add_argument("--domain-id", type=int, default=DEFAULT_DOMAIN,
                    help=f"ROS_DOMAIN_ID of the node and the player (default {DEFAULT_DOMAIN})")
     r.add_argument("--keep", metavar="DIR", help="keep the bag and logs in DIR (default: a temp dir, removed)")
+    r.add_argument("--pin", action="store_true",
+                   help="reserve the last CPU for the node's tick: node parameter tick_cpu = that CPU (the "
+                        "node's other threads move off it) and the player started on the other CPUs")
+    r.add_argument("--floor", action="store_true",
+                   help="after the node's run, measure the machine's noise floor for as long: constant Python "
+                        "work as long as the node's median tick, paced at the same rate on the same CPU")
     r.add_argument("--stages", action="store_true",
                    help="profile: run the node with timers around each stage of its tick (advance, outputs, "
                         "encode (CDR templates), markers, publish, bag write; thread CPU time; garbage collection) "
@@ -374,7 +380,9 @@ def realtime_main(args: argparse.Namespace) -> int:
         return 2
     tick = 1.0 / args.rate
     argv = ["mta", "bench", "realtime", "--duration", f"{args.duration:g}", "--rate", f"{args.rate:g}",
-            "--scene", args.scene, "--out", args.out] + (["--stages"] if args.stages else [])
+            "--scene", args.scene, "--out", args.out] + (["--stages"] if args.stages else []) + \
+        (["--pin"] if args.pin else []) + \
+        (["--floor"] if args.floor else [])
     head = header_lines(f"Benchmark: the node in real time ({scene.name}, {args.rate:g} Hz)", argv)
 
     tmp = None
@@ -385,8 +393,11 @@ def realtime_main(args: argparse.Namespace) -> int:
         tmp = tempfile.TemporaryDirectory(prefix="mta_bench_")
         work = Path(tmp.name)
     bag_dir = work / "bags"
+    cpus = sorted(os.sched_getaffinity(0))
+    tick_cpu = cpus[-1] if args.pin and len(cpus) > 1 else -1
     params = write_params(work / "params.yaml", scene_file=scene_path, bag_dir=str(bag_dir),
-                          publish_rate=float(args.rate), real_time_factor=1.0, record=True)
+                          publish_rate=float(args.rate), real_time_factor=1.0, record=True, tick_cpu=tick_cpu)
+    player_cpus = set(cpus) - {tick_cpu}
     env = ros_env(args.domain_id)
     node_log, player_result = work / "node.log", work / "player.json"
     print(f"mta bench realtime: scene '{scene.name}' ({scene_path}), {args.rate:g} Hz, real-time factor 1, "
@@ -401,7 +412,7 @@ def realtime_main(args: argparse.Namespace) -> int:
     node = subprocess.Popen(node_cmd, env=env, stdout=node_log.open("w"), stderr=subprocess.STDOUT, cwd=REPO)
     player = subprocess.Popen([sys.executable, "-m", "mta_sim_ros.tools.bench", "--player", "--scene", scene_path,
                                "--duration", repr(args.duration), "--result", str(player_result)],
-                              env=env, cwd=REPO)
+                              env=env, cwd=REPO, preexec_fn=lambda: os.sched_setaffinity(0, player_cpus))
     deadline = time.monotonic() + args.duration * 1.5 + 120.0
     failure = ""
     node_cpu = player_cpu = None
@@ -509,6 +520,10 @@ def realtime_main(args: argparse.Namespace) -> int:
         "`mta_sim_ros.run` (compute time of `_on_tick`: advance, outputs, encode the messages, markers, "
         "publish and record; histogram percentiles within 0.5 %).",
         "- both processes: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, their own ROS_DOMAIN_ID.",
+        (f"- CPUs (`--pin`): the node's tick thread alone on CPU {tick_cpu} (node parameter tick_cpu; the "
+         f"node's other threads moved off it), the player on CPUs {sorted(player_cpus)}; other processes of the "
+         f"machine not moved." if tick_cpu >= 0 else
+         "- CPUs: no pinning; the kernel places the node's threads and the player on any CPU."),
         "",
         "## Result", "",
         "| quantity | value | |", "|---|---:|---|",
@@ -522,6 +537,22 @@ def realtime_main(args: argparse.Namespace) -> int:
     ]
     if last_info:
         lines += ["The node's own line at exit:", "", "```", last_info[-1].strip(), "```", ""]
+    if args.floor and n:
+        floor = noise_floor(f["tick_p50"], tick, args.duration, tick_cpu)
+        print(f"noise floor: {floor['work']} ({floor['count']} times): p50/p99/p99.9/max "
+              f"{floor['p50'] * 1e3:.3f}/{floor['p99'] * 1e3:.3f}/{floor['p99.9'] * 1e3:.3f}/{floor['max'] * 1e3:.3f} ms")
+        lines += [
+            "## The machine's noise floor (`--floor`, measured after the node's run)", "",
+            f"The same measurement on work that never changes: {floor['work']}, calibrated to the node's median "
+            f"tick ({f['tick_p50'] * 1e3:.3f} ms), run once per {tick * 1e3:g} ms with `time.sleep` in between for "
+            f"{args.duration:g} s, in the bench process"
+            f"{f' pinned to CPU {tick_cpu}' if tick_cpu >= 0 else ''}, with no node and no player running. "
+            "Whatever tail it has comes from the machine (other virtual machines on the host, the hypervisor), "
+            "not from the code.", "",
+            "| constant work, paced | p50 | p99 | p99.9 | max | back to back p50 |", "|---|---:|---:|---:|---:|---:|",
+            f"| {floor['count']} runs | {floor['p50'] * 1e3:.3f} ms | {floor['p99'] * 1e3:.3f} ms | "
+            f"{floor['p99.9'] * 1e3:.3f} ms | {floor['max'] * 1e3:.3f} ms | {floor['b2b'] * 1e3:.3f} ms |", "",
+            f"Slowest 0.1 % at (s from the start): {floor['slow_at']}", ""]
     if args.stages and stages_file.exists():
         text, md = stage_report(stages_file)
         print("where the tick time goes (instrumented node):")
@@ -534,6 +565,52 @@ def realtime_main(args: argparse.Namespace) -> int:
     if tmp:
         tmp.cleanup()
     return 0 if met else 4
+
+
+def noise_floor(work_seconds: float, period: float, duration: float, cpu: int) -> dict:
+    """Constant pure-Python work lasting about ``work_seconds`` back to back, run once per ``period``
+    for ``duration`` s (sleeping in between) on ``cpu`` (-1: anywhere); its wall-time percentiles."""
+    import numpy as np
+
+    if cpu >= 0:
+        os.sched_setaffinity(0, {cpu})
+
+    def work(n: int) -> int:
+        s = 0
+        for i in range(n):
+            s += i * i
+        return s
+
+    n, spent = 1000, 0.0
+    while spent < 0.2:  # calibrate: iterations per second, back to back
+        t0 = time.perf_counter()
+        work(n)
+        spent = time.perf_counter() - t0
+        n *= 2
+    iterations = max(1, round(work_seconds * (n / 2) / spent))
+    b2b = []
+    for _ in range(200):
+        t0 = time.perf_counter()
+        work(iterations)
+        b2b.append(time.perf_counter() - t0)
+    times, starts = [], []
+    begin = time.perf_counter()
+    due = begin + period
+    while due - begin < duration:
+        pause = due - time.perf_counter()
+        if pause > 0:
+            time.sleep(pause)
+        t0 = time.perf_counter()
+        work(iterations)
+        times.append(time.perf_counter() - t0)
+        starts.append(t0 - begin)
+        due = max(due + period, time.perf_counter())
+    w = np.array(times)
+    slow = w >= np.percentile(w, 99.9)
+    return {"work": f"`sum(i * i for i < {iterations})` as a loop", "count": len(w),
+            **{k: float(np.percentile(w, q)) for k, q in (("p50", 50), ("p99", 99), ("p99.9", 99.9), ("max", 100))},
+            "b2b": float(np.median(b2b)),
+            "slow_at": ", ".join(f"{t:.1f}" for t in np.array(starts)[slow])}
 
 
 # -- method ----------------------------------------------------------------------------------
