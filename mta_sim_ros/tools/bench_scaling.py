@@ -7,9 +7,10 @@ DDS): measurements, not tests. Prints progress to stderr; writes Markdown and PN
     0.01 s, plus the validity check), ``Simulation.outputs`` (compiled, as ``evaluate_outputs``),
     ``ros_msgs.OutputEncoder.encode`` (the messages' CDR bytes from templates),
     ``ros_msgs.TrainMarkers.encode`` every publish_rate / 10 Hz ticks, and the bag write of those
-    bytes (``RunRecorder.write``, MCAP, on the tick's thread) together with the two commands a
-    steering player sends per tick (serialized by rclpy and recorded as the node records them). Not included: ``Publisher.publish`` (DDS)
-    and the 1 Hz diagnostics. Ticks run back to back; per tick the wall time (perf_counter) and the
+    bytes (``RunRecorder.write``, MCAP, on the tick's thread, where the node now hands it to a
+    thread of its own) together with the two commands a steering player sends per tick (serialized
+    by rclpy and recorded as the node records them). Not included: ``Publisher.publish`` (DDS) and
+    the 1 Hz diagnostics. Ticks run back to back; per tick the wall time (perf_counter) and the
     thread's CPU time (thread_time) are recorded.
     max real-time factor := tick / p99(tick compute wall time): the factor by which a node could
     run faster than real time with 99 % of its ticks still inside their (shortened) period.
