@@ -194,7 +194,10 @@ def receive(probe: Probe, topics: dict[str, type]) -> dict[str, list]:
     boxes = {}
     for topic, msg_type in topics.items():
         box = boxes[topic] = []
-        probe.node.create_subscription(msg_type, topic, lambda m, box=box: box.append((time.monotonic(), m)), 10)
+        # depth 1000: the DDS reader keeps every sample even if this process stalls for a while.
+        # With depth 10 one full-suite run received fewer messages than the player published (200
+        # a second; a stall of ~50 ms of this process would overflow 10) and passed on re-runs.
+        probe.node.create_subscription(msg_type, topic, lambda m, box=box: box.append((time.monotonic(), m)), 1000)
     return boxes
 
 
