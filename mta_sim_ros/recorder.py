@@ -8,9 +8,8 @@ written), stops recording, and is reported through ``error``.
 With ``background=True`` (the node) the MCAP work happens on a thread of its own: ``write`` and
 ``write_batch`` only append the bytes to a deque and return, so building the records (~10 us a
 message in the mcap library) and compressing each chunk stay off the simulation's tick. The tick
-never wakes that thread: it looks at the deque every POLL_SECONDS by itself (the pattern of
-realtime_tools' RealtimePublisher, whose non-real-time thread polls instead of being signalled by
-the real-time one). Signalling it from the tick (a queue put per tick) let the scheduler run the
+never wakes that thread: it looks at the deque every POLL_SECONDS by itself. Signalling it from
+the tick (a queue put per tick) let the scheduler run the
 woken thread in the middle of the tick: in the node's benchmark the slowest 0.1 % of ticks then
 lost ~1 ms inside that put, off the CPU. ``start`` and ``close`` first wait until everything
 handed over is written, so a closed bag holds every message handed over before. After SIGKILL
