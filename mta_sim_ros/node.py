@@ -239,8 +239,6 @@ class SimNode(Node):
             return
         out = self.sim.outputs()
         out.t = self.now
-        if self.encoder.frame_id != self.cfg["frame_id"]:  # frame_id changes live
-            self._make_encoders()
         msgs = self.encoder.encode(out)  # CDR bytes: the same bytes go to DDS and to the bag
         self.ticks_since_markers += 1
         if self.ticks_since_markers >= self.marker_every:
@@ -250,15 +248,13 @@ class SimNode(Node):
             self.pubs[topic].publish(data)
         if self.recorder is not None and self.recorder.recording:  # the same bytes, to the bag writer's thread
             self.recorder.write_batch(msgs, round(self.now * 1e9))
-        else:
-            self._record({})  # says a recording error once
         cpu = time.thread_time() - cpu_started
         self.stats.record(time.perf_counter() - started, deadline=self.period if self.period > 0 else None)
         self.cpu_stats.record(cpu)
 
     def _make_encoders(self) -> None:
         """The tick's messages as CDR templates (ros_msgs.OutputEncoder, TrainMarkers), for the
-        current frame_id."""
+        current frame_id (at start and when the parameter changes)."""
         self.encoder = ros_msgs.OutputEncoder(self.cart_names, self.cfg["frame_id"])
         self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])
 
@@ -274,17 +270,11 @@ class SimNode(Node):
 
     def _record(self, msgs: dict) -> None:
         """Log messages (topic -> message or its CDR bytes) at the current simulation time. The
-        writing happens on the recorder's thread, so a failure (disk full) shows up here later:
-        it is logged once, at the first message after it."""
-        recorder = self.recorder
-        if recorder is None:
-            return
-        if recorder.recording:
-            recorder.write_batch({topic: msg if isinstance(msg, bytes) else serialize_message(msg)
-                                  for topic, msg in msgs.items()}, round(self.now * 1e9))
-        elif recorder.error and recorder.error != self.logged_bag_error:
-            self.logged_bag_error = recorder.error
-            self.get_logger().error(recorder.error)
+        writing happens on the recorder's thread: a failure (disk full) shows up later, in
+        ``recorder.error``, which ``_publish_diagnostics`` reports and logs once."""
+        if self.recorder is not None and self.recorder.recording:
+            self.recorder.write_batch({topic: msg if isinstance(msg, bytes) else serialize_message(msg)
+                                       for topic, msg in msgs.items()}, round(self.now * 1e9))
 
     # -- commands --------------------------------------------------------------------------
     def _on_steering(self, msg: Float64) -> None:
@@ -354,6 +344,8 @@ class SimNode(Node):
                 self.cfg[param.name] = param.value
                 if param.name == "real_time_factor":
                     self._make_timer()
+                if param.name == "frame_id":
+                    self._make_encoders()  # the frame is part of the templates
         return SetParametersResult(successful=True)
 
     # -- run log and diagnostics -----------------------------------------------------------
@@ -390,6 +382,9 @@ class SimNode(Node):
         return path
 
     def _publish_diagnostics(self) -> None:
+        if self.recorder is not None and self.recorder.error not in ("", self.logged_bag_error):
+            self.logged_bag_error = self.recorder.error  # said once in the log; every second in /diagnostics
+            self.get_logger().error(self.recorder.error)
         wall = time.monotonic() - self.wall_start
         rtf = (self.now - self.sim_at_wall_start) / wall if wall > 0 else 0.0
         margin = self.sim.outputs().jackknife_margin

@@ -32,7 +32,7 @@ from std_msgs.msg import ColorRGBA, Float64, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .bag.schemas import split_type_name
-from .bag.writer import stamp, yaw_quaternion
+from .bag.writer import stamp, stamp_parts, yaw_quaternion
 
 #: hardware_id of every DiagnosticStatus the simulator reports.
 HARDWARE_ID = "mta_sim_ros"
@@ -173,17 +173,13 @@ class CdrTemplate:
 
     def fill(self, values, sec_nanosec: tuple[int, int] | None = None) -> bytes:
         """The CDR bytes of the message with these values (in sentinel order) and every stamp set
-        to ``sec_nanosec`` (see :func:`stamp_of`)."""
+        to ``sec_nanosec`` (see ``bag.writer.stamp_parts``)."""
         self.f64[self.values] = values
         if sec_nanosec is not None:
             self.u32[self.sec] = sec_nanosec[0] & 0xFFFF_FFFF  # int32 sec, two's complement
             self.u32[self.nanosec] = sec_nanosec[1]
         return bytes(self.buf)
 
-
-def stamp_of(t_seconds: float) -> tuple[int, int]:
-    """(sec, nanosec) of ``t_seconds``, rounded to the nanosecond like ``bag.writer.stamp``."""
-    return divmod(round(t_seconds * 1e9), 10**9)
 
 
 class OutputEncoder:
@@ -208,7 +204,7 @@ class OutputEncoder:
         """topic -> CDR bytes, the topics and values of :func:`output_messages`."""
         if len(out.heading) != self.n:
             raise ValueError(f"OutputEncoder: {self.n} cart names for {len(out.heading)} carts")
-        t, v = stamp_of(out.t), self.pose_values
+        t, v = stamp_parts(out.t), self.pose_values
         v[:, :2] = out.front
         for k, th in enumerate(out.heading.tolist()):  # yaw_quaternion's math, bit for bit
             v[k, 2], v[k, 3] = math.sin(th / 2.0), math.cos(th / 2.0)
@@ -304,13 +300,12 @@ class TrainMarkers:
         self.template = CdrTemplate(self.array, 2 * len(self.points), len(self.stamps))
 
     def update(self, out) -> MarkerArray:
-        st = stamp(out.t)
-        self._set((st["sec"], st["nanosec"]), self._coordinates(out))
+        self._set(stamp_parts(out.t), self._coordinates(out))
         return self.array
 
     def encode(self, out) -> bytes:
         """The CDR bytes of ``update(out)``, without touching the message objects."""
-        return self.template.fill(self._coordinates(out), stamp_of(out.t))
+        return self.template.fill(self._coordinates(out), stamp_parts(out.t))
 
     def _set(self, sec_nanosec, xy: list[float]) -> None:
         for s in self.stamps:

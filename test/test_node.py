@@ -257,8 +257,10 @@ def test_an_unwritable_bag_dir_does_not_stop_the_simulation(tmp_path, probe):
         wait_for_output(probe, node, count=10)
         diags = probe.subscribe("/diagnostics", DiagnosticArray)
         assert probe.spin_until(lambda: any("recording stopped" in d.status[0].message for d in diags), 10.0)
+        probe.spin_until(lambda: False, 2.5)  # two more diagnostics: the log must not repeat it
     finally:
         assert stop(node) == 0
+    assert (tmp_path / "node.log").read_text().count("recording stopped") == 1  # logged once
 
 
 def test_a_jackknife_halts_the_model_not_the_node(tmp_path, probe):
@@ -340,8 +342,10 @@ def test_a_disk_filling_up_mid_run_stops_recording_not_the_simulation(tmp_path, 
         assert probe.spin_until(lambda: any("recording stopped" in d.status[0].message for d in diags), 60.0)
         n = len(poses)
         assert probe.spin_until(lambda: len(poses) > n + 20, 10.0), "the simulation stopped with the recording"
+        probe.spin_until(lambda: False, 2.5)  # two more diagnostics: the log must not repeat it
     finally:
         assert stop(node) == 0
+    assert (tmp_path / "node.log").read_text().count("recording stopped") == 1  # logged once
     [bag] = bags_in(tmp_path / "bags")
     fixed = tmp_path / "fixed.mcap"
     done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "recover", str(bag), "-o", str(fixed)],
@@ -362,6 +366,31 @@ def test_a_namespace_moves_every_relative_name(tmp_path, probe):
         assert stop(node) == 0
     topics = set(read_bag(bags_in(tmp_path / "bags")[0]))
     assert {"/unit1/hitch_poses", "/unit1/traction_power", "/clock", "/diagnostics"} <= topics
+
+
+def test_frame_id_changes_live(tmp_path, probe):
+    """frame_id is live: after the change, hitch_poses and markers carry the new frame (the
+    tick's CDR templates are rebuilt), and the poses go on from where they were."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    from visualization_msgs.msg import MarkerArray
+
+    node = start_node(params(tmp_path), tmp_path / "node.log")
+    try:
+        poses = wait_for_output(probe, node)
+        markers = probe.subscribe("/markers", MarkerArray)
+        assert probe.spin_until(lambda: markers, 10.0)
+        assert poses[-1].header.frame_id == "map" and markers[-1].markers[0].header.frame_id == "map"
+        p = Parameter(name="frame_id", value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="odom"))
+        assert probe.call(SetParameters, "/mta_sim/set_parameters", SetParameters.Request(parameters=[p])).results[0].successful
+        n, m = len(poses), len(markers)
+        assert probe.spin_until(lambda: len(poses) > n + 5 and len(markers) > m + 2, 10.0)
+        assert poses[-1].header.frame_id == "odom"
+        assert {mk.header.frame_id for mk in markers[-1].markers} == {"odom"}
+        assert poses[-1].header.stamp.sec * 10**9 + poses[-1].header.stamp.nanosec > \
+            poses[n - 1].header.stamp.sec * 10**9 + poses[n - 1].header.stamp.nanosec
+    finally:
+        assert stop(node) == 0
 
 
 def test_parameters_that_cannot_change_live_are_refused_with_a_reason(tmp_path, probe):

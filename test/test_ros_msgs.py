@@ -324,11 +324,13 @@ def test_encoded_outputs_decode_to_the_messages_built_field_by_field(lane_change
 def test_encoded_stamps_round_like_the_bag_stamp(lane_change):
     """Stamps written into the template carry sec and nanosec as ``bag.stamp`` rounds them,
     including the second boundary and large times."""
+    import dataclasses
+
     sim, samples = lane_change
     encoder = ros_msgs.OutputEncoder([c.name for c in sim.scene.train.carts])
     for t in (0.0, 0.999999999, 1.0, 12.3456789, 3599.9999999996, 2.0**31 - 1.5):
-        samples[1].t = t
-        clock = deserialize_message(encoder.encode(samples[1])["/clock"], ros_msgs.Clock)
+        out = dataclasses.replace(samples[1], t=t)  # not the shared fixture's sample itself
+        clock = deserialize_message(encoder.encode(out)["/clock"], ros_msgs.Clock)
         assert (clock.clock.sec, clock.clock.nanosec) == tuple(stamp(t).values()), t
 
 

@@ -349,8 +349,13 @@ class BagWriter:
 
 def stamp(t_seconds: float) -> dict[str, int]:
     """builtin_interfaces/Time for ``t_seconds`` (nanosec always in [0, 1e9))."""
-    sec, nanosec = divmod(round(t_seconds * 1e9), 10**9)
-    return {"sec": int(sec), "nanosec": int(nanosec)}
+    sec, nanosec = stamp_parts(t_seconds)
+    return {"sec": sec, "nanosec": nanosec}
+
+
+def stamp_parts(t_seconds: float) -> tuple[int, int]:
+    """(sec, nanosec) of ``t_seconds``, rounded to the nanosecond (nanosec in [0, 1e9))."""
+    return divmod(round(t_seconds * 1e9), 10**9)
 
 
 def header(t_seconds: float, frame_id: str) -> dict[str, Any]:

@@ -6,7 +6,9 @@ off, so no reassociation and no fused multiply-add), and ``_tick`` runs whole ti
 Heun or RK4 with the input held, mirroring ``integrate.steppers.FixedStep`` (its ``y + (h / 6)
 (k1 + 2 k2 + 2 k3 + k4)`` evaluated in numpy's order). Both stay in compiled code for a whole tick:
 one call from Python per tick instead of 4 right-hand sides plus a dozen array operations.
-test/test_compiled.py holds the two paths equal.
+test/test_compiled.py holds the two paths equal. ``_outputs`` mirrors ``sim.evaluate_outputs``
+the same way (the chain's factors and resistances recorded by ``_rhs``, then cart_points,
+hitch_angles and guards.margin_of), so that ``Simulation.outputs`` costs one compiled call too.
 
 The train's constants are packed once per model into one flat float64 array (``pack``); every
 force law of the Python path is supported (rolling, ASABE drafts, the constant, governor and
@@ -360,8 +362,8 @@ class CompiledModel:
         return self.Outputs(
             t=t, front=cart[:, _AX:_AY + 1], axle=cart[:, _BX:_BY + 1], com=cart[:, _CX:_CY + 1],
             rear_hitch=sc[_REAR_X:_REAR_Y + 1], heading=y[2:2 + n].copy(), hitch_angle=cart[1:, _PHI],
-            psi=cart[:, _PSI], com_speed=cart[:, _VC], axle_speed=cart[:, _VB], yaw_rate=cart[:, _VT], speed=V, steering=float(y[n + 2]), command=command,
-            speed_setpoint=v_set, resistance=cart[:, _RES], traction=traction, power=traction * V,
+            psi=cart[:, _PSI], com_speed=cart[:, _VC], axle_speed=cart[:, _VB], yaw_rate=cart[:, _VT],
+            speed=V, steering=float(y[n + 2]), command=command, speed_setpoint=v_set, resistance=cart[:, _RES], traction=traction, power=traction * V,
             resistance_power=float(sc[_RES_POWER]), kinetic_energy=0.5 * float(sc[_MASS]) * V * V,
             jackknife_margin=float(sc[_MARGIN]))
 
