@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis")
 
-    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity")
+    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, tick-parts")
     return parser
 
 

@@ -88,6 +88,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     add_scaling(sub)
 
+    t = sub.add_parser("tick-parts", help="the node tick's parts, old way against new, side by side offline",
+                       description=tick_parts_main.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    t.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
+    t.add_argument("--rounds", type=int, default=30, help="rounds; each times every variant once (default 30)")
+    t.add_argument("--calls", type=int, default=100, help="calls per variant per round (default 100)")
+    t.set_defaults(bench_func=tick_parts_main)
+
 
 def main(args: argparse.Namespace) -> int:
     return args.bench_func(args)
@@ -611,6 +618,55 @@ def noise_floor(work_seconds: float, period: float, duration: float, cpu: int) -
             **{k: float(np.percentile(w, q)) for k, q in (("p50", 50), ("p99", 99), ("p99.9", 99.9), ("max", 100))},
             "b2b": float(np.median(b2b)),
             "slow_at": ", ".join(f"{t:.1f}" for t in np.array(starts)[slow])}
+
+
+# -- tick parts -------------------------------------------------------------------------------
+
+def tick_parts_main(args: argparse.Namespace) -> int:
+    """``mta bench tick-parts``: the parts of the node's tick that exist in two forms, timed side by
+    side in one process, offline, calls back to back, on a state of the scene after 3 s of its own
+    inputs: the five output messages built as rclpy objects and serialized against
+    ``ros_msgs.OutputEncoder.encode`` (CDR templates); the MarkerArray redrawn and serialized
+    against ``TrainMarkers.encode``; ``sim.evaluate_outputs`` (Python) against
+    ``Simulation.outputs`` on the compiled path. The variants alternate within each round, so
+    both see the same machine; printed: the median over rounds of the mean time per call, and the
+    ratio. No file is written."""
+    import statistics as stats
+
+    from rclpy.serialization import serialize_message
+
+    from .. import ros_msgs
+    from ..model.loader import load_scene
+    from ..sim import Simulation, evaluate_outputs
+
+    scene = load_scene(resolve_scene(args.scene))
+    sim = Simulation(scene, fidelity="dynamic")
+    while sim.t < 3.0:
+        sim.advance(*sim.scheduled_inputs(sim.t))
+    out = sim.outputs()
+    names = [c.name for c in scene.train.carts]
+    encoder, markers = ros_msgs.OutputEncoder(names), ros_msgs.TrainMarkers(scene.train)
+    pairs = {
+        "five output messages": (
+            lambda: [serialize_message(m) for m in ros_msgs.output_messages(out, names).values()],
+            lambda: encoder.encode(out)),
+        "markers (MarkerArray)": (lambda: serialize_message(markers.update(out)), lambda: markers.encode(out)),
+        "outputs": (lambda: evaluate_outputs(sim.model, sim.t, sim.y, sim.command, sim.v_set), sim.outputs),
+    }
+    print(f"mta bench tick-parts: scene '{scene.name}', {len(names)} carts, outputs path: {sim.compiled_note}; "
+          f"{args.rounds} rounds x {args.calls} calls per variant")
+    print(f"  {'part':<24} {'old, us':>9} {'new, us':>9} {'old / new':>10}")
+    for label, variants in pairs.items():
+        times: list[list[float]] = [[], []]
+        for _ in range(args.rounds):
+            for i, fn in enumerate(variants):
+                t0 = time.perf_counter()
+                for _ in range(args.calls):
+                    fn()
+                times[i].append((time.perf_counter() - t0) / args.calls)
+        old, new = stats.median(times[0]), stats.median(times[1])
+        print(f"  {label:<24} {old * 1e6:9.1f} {new * 1e6:9.1f} {old / new:10.1f}")
+    return 0
 
 
 # -- method ----------------------------------------------------------------------------------
