@@ -11,76 +11,47 @@ import math
 import os
 import time
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 
 from .fidelity import Choice, choose, make_model
 from .integrate import IntegrationError, make_stepper
 from .integrate.stability import UnstableStepError, stable_step
+from .integrate.steppers import FixedStep
+from .model import jit, kernel
 from .model.dynamics import Model
-from .model.geometry import cart_points, hitch_angles
-from .model.guards import ModelValidityError, check_state, fast_modes, margin_of
+from .model.guards import ModelValidityError, check_state, fast_modes
+from .model.outputs import Outputs, evaluate, reference_outputs
 from .model.spec import Scene, Table
 
+NO_JIT_ENV = jit.NO_JIT_ENV  # set to 1: Simulation(compiled=None) runs the kernels as plain Python
 
-NO_JIT_ENV = "MTA_SIM_NO_JIT"  # set to 1: Simulation(compiled=None) keeps the Python path
+__all__ = ["Outputs", "Simulation", "evaluate_outputs", "run_scene", "initial_state", "start_state",
+           "speed_setpoint", "table_value"]
 
 
-def compiled_model(model, method: str, compiled: bool | None):
-    """(model.compiled.CompiledModel or None, note saying why). ``compiled``: None = when the model
-    and method have a compiled form, numba is importable and MTA_SIM_NO_JIT is not set; True =
-    required (ValueError/ImportError if impossible); False = never."""
+def kernel_path(model, compiled: bool | None) -> tuple[bool | None, str]:
+    """(True: the compiled kernels, False: the kernels as plain Python, None: no kernel for this
+    model (the slip level, algorithm 1: their own Python), note saying why).
+
+    ``compiled``: None = compiled when numba runs and MTA_SIM_NO_JIT is not set; True = required
+    (ImportError if numba cannot run); False = plain Python."""
+    if getattr(model, "P", None) is None or getattr(model, "algorithm", 2) != 2:
+        return None, "Python model (no kernel for this level and algorithm)"
     if compiled is False:
-        return None, "Python right-hand side (compiled=False)"
+        return False, "kernels as plain Python (compiled=False)"
     if compiled is None and os.environ.get(NO_JIT_ENV, "").strip() not in ("", "0"):
-        return None, f"Python right-hand side ({NO_JIT_ENV}={os.environ[NO_JIT_ENV]})"
-    from .integrate.steppers import FIXED_METHODS
-
-    try:
-        from .model import compiled as jit
-    except (ImportError, OSError) as err:  # OSError: llvmlite's shared library failed to load
+        return False, f"kernels as plain Python ({NO_JIT_ENV}={os.environ[NO_JIT_ENV]})"
+    if not jit.ENABLED:
         if compiled:
-            raise
-        return None, f"Python right-hand side (numba not importable: {err})"
-    if method not in FIXED_METHODS or not jit.supports(model):
-        if compiled:
-            raise ValueError(f"compiled=True: no compiled path for method {method!r} with this model (it covers "
-                             f"{', '.join(FIXED_METHODS)} on the dynamic level, algorithm 2)")
-        return None, "Python right-hand side (no compiled form for this method and model)"
-    return jit.CompiledModel(model), f"compiled {method} tick (numba {jit.numba_version()})"
+            raise ImportError(f"compiled=True: {jit.NOTE}")
+        return False, f"kernels as plain Python ({jit.NOTE})"
+    return True, f"compiled kernels ({jit.NOTE})"
 
 
 def table_value(table: Table, t: float) -> float:
     """Piecewise-linear interpolation, held constant outside the table."""
     return float(np.interp(t, table.time, table.value))
-
-
-@dataclass
-class Outputs:
-    """What the simulator reports at one instant (SI units, rad)."""
-
-    t: float  # s
-    front: np.ndarray  # A_k, n x 2
-    axle: np.ndarray  # B_k, n x 2
-    com: np.ndarray  # C_k, n x 2
-    rear_hitch: np.ndarray  # A_{n+1} (the last cart's rear hitch point), 2
-    heading: np.ndarray  # th_k, n
-    hitch_angle: np.ndarray  # th_{k-1} - th_k, n - 1
-    psi: np.ndarray  # psi_k, n (psi_1 = applied steering angle)
-    com_speed: np.ndarray  # s'_Ck, n, m/s
-    axle_speed: np.ndarray  # s'_Bk, n, m/s
-    yaw_rate: np.ndarray  # th'_k, n, rad/s
-    speed: float  # V = s'_A1, m/s
-    steering: float  # psi_1, rad
-    command: float  # steering command held over the last tick, rad
-    speed_setpoint: float  # m/s
-    resistance: np.ndarray  # F_Bk, n, N (> 0 opposes forward motion of B_k)
-    traction: float  # F_A1, N
-    power: float  # N = F_A1 V, W
-    resistance_power: float  # sum F_Bk s'_Bk, W
-    kinetic_energy: float  # T = 1/2 M V^2, J
-    jackknife_margin: float  # rad, see guards.jackknife_margin
 
 
 def initial_state(scene: Scene, model: Model) -> np.ndarray:
@@ -126,13 +97,17 @@ class Simulation:
 
     def __init__(self, scene: Scene, method: str | None = None, step: float | None = None,
                  rate: float | None = None, algorithm: int = 2, substep: bool = True,
-                 fidelity: str | None = None, compiled: bool | None = None):
-        """``compiled``: run each tick of a fixed-step method on the dynamic level (algorithm 2) in
-        compiled code (model/compiled.py, numba), bit for bit the Python path's arithmetic; None
-        (default) = whenever possible unless the environment sets MTA_SIM_NO_JIT=1, True = required,
-        False = the Python path. ``self.compiled`` says which runs, ``compiled_note`` why, and
-        ``compile_time`` the seconds the JIT warm-up took here (0 without it; ~0 when already
-        compiled in this process or loaded from numba's disk cache).
+                 fidelity: str | None = None, compiled: bool | None = None, split_kinks: bool | None = None):
+        """``compiled``: run the kernels (model/kernel.py: the dynamic and kinematic levels with
+        algorithm 2) compiled by numba, or as plain Python: None (default) = compiled when numba
+        runs and the environment does not set MTA_SIM_NO_JIT=1, True = required, False = Python;
+        the same numbers either way. ``self.compiled`` says which runs (None: a level without
+        kernels), ``compiled_note`` why, ``compile_time`` the seconds the first compilation (or
+        load from numba's disk cache) took here.
+
+        ``split_kinks``: split each step where the right-hand side is not smooth (the actuator's
+        rate limit letting go, a force limit engaging; integrate/steppers.py); None = the scene's
+        ``integrator.split_kinks`` (default true).
 
         A fixed step past its method's stability limit for a fast mode of the model (e.g. rk4
         with step > 2.785 x the steering actuator's time constant) would give growing garbage:
@@ -156,6 +131,7 @@ class Simulation:
                 method, step = slip.DEFAULT_METHOD, step or 1.0 / (rate or scene.publish_rate)
         self.method = method or integ.method
         self.step = step or integ.step
+        self.split_kinks = integ.split_kinks if split_kinks is None else bool(split_kinks)
         make_stepper(self.method, self.step, self.rtol, self.atol)  # a bad method fails here, not at reset
         self.tick = 1.0 / (rate or scene.publish_rate)
         self.stepper_step, self.stability_note = stable_step(self.method, self.step, self.tick,
@@ -165,22 +141,37 @@ class Simulation:
                 raise UnstableStepError(self.stability_note.replace(
                     "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
             warnings.warn(self.stability_note, RuntimeWarning, stacklevel=2)
-        self._compiled, self.compiled_note = compiled_model(self.model, self.method, compiled)
-        self.compiled = self._compiled is not None
+        self.compiled, self.compiled_note = kernel_path(self.model, compiled)
+        # the right-hand side of the adaptive methods and of the slip level
+        if self.compiled is False:
+            P = self.model.P
+            self._rhs = lambda t, y, c, v: kernel.rhs_of.py_func(P, np.asarray(y, dtype=np.float64), float(c),
+                                                                 float(v))
+        else:
+            self._rhs = self.model.rhs
         self.compile_time = 0.0
         self.reset()
-        if self._compiled is not None:  # compile now, not in the first tick
+        if self.compiled:  # compile (or load from numba's cache) now, not in the first tick
             t_c = time.perf_counter()
-            self._compiled.warm_up(self.y)
+            self._warm_up()
             self.compile_time = time.perf_counter() - t_c
-            self.compiled_note += f", JIT warm-up {self.compile_time:.3g} s"
+            self.compiled_note += f", first call {self.compile_time:.3g} s"
+
+    def _warm_up(self) -> None:
+        y = np.ascontiguousarray(self.y, dtype=np.float64)
+        P = self.model.P
+        kernel.tick(P, FixedStep("rk4", 1.0).tableau.packed, y, 0.0, 0.0, 0.0, 1e-3, 1e-3, True)
+        kernel.rhs_of(P, y, 0.0, 0.0)
+        kernel.outputs_of(getattr(self.model, "P_outputs", P), y, 0.0, 0.0)
+        kernel.margin_of(P, y)
+        kernel.switches_of(P, y, 0.0, 0.0)
+        kernel.release_of(P, 0.0, 0.0)
 
     def reset(self) -> None:
         """Back to the scene's start, with a fresh stepper (an adaptive one forgets its last step,
         so a run after a reset is the same as the first)."""
-        self.stepper = make_stepper(self.method, self.stepper_step, self.rtol, self.atol)
-        if getattr(self, "_compiled", None) is not None:
-            self.stepper.attach(self._compiled)
+        self.stepper = make_stepper(self.method, self.stepper_step, self.rtol, self.atol, self.split_kinks)
+        self._kernel_ticks = self.compiled is not None and isinstance(self.stepper, FixedStep)
         self.ticks = 0
         self.y = start_state(self.scene, self.model)
         self.command = self.scene.initial.steering
@@ -190,6 +181,11 @@ class Simulation:
     def t(self) -> float:
         return self.ticks * self.tick
 
+    @property
+    def kinks(self) -> int:
+        """Kinks the stepper split at so far (since the last reset)."""
+        return self.stepper.kinks
+
     def scheduled_inputs(self, t: float) -> tuple[float, float]:
         """The scene's own steering command and speed set-point at t."""
         return table_value(self.scene.steering, t), speed_setpoint(self.scene, t)
@@ -198,71 +194,59 @@ class Simulation:
         """Advance one tick holding (command, v_set); raise ModelValidityError past the model's
         validity (the state before the failing tick is kept)."""
         t0 = self.t
+        t1 = t0 + self.tick
         model = self.model
-        if getattr(self.stepper, "compiled", None) is not None:  # the compiled tick (model/compiled.py)
-            y1, clear = self.stepper.advance_held(t0, self.y, t0 + self.tick, command, v_set)
-            if not clear:  # non-finite or near a jackknife limit: the Python check decides and says why
-                check_state(model, t0 + self.tick, y1)
-            self.y = y1
-            self.ticks += 1
-            self.command, self.v_set = command, v_set
-            return y1
-
-        def f(t, y):
-            return model.rhs(t, y, command, v_set)
-
         y0 = self.y if self._begin_tick is None else self._begin_tick(self.y, v_set, self.tick)
-        y1 = self.stepper.advance(f, t0, y0, t0 + self.tick)
-        check_state(model, t0 + self.tick, y1)
+        if self._kernel_ticks:  # one kernel call a tick
+            y1, clear = self.stepper.tick(model.P, y0, t0, t1, command, v_set, self.compiled)
+            if not clear:  # non-finite or near a jackknife limit: the Python check decides and says why
+                check_state(model, t1, y1)
+        else:
+            rhs = self._rhs
+
+            def f(t, y):
+                return rhs(t, y, command, v_set)
+
+            if isinstance(self.stepper, FixedStep):
+                y1 = self.stepper.advance(f, t0, y0, t1)
+            else:
+                y1 = self.stepper.tick(f, t0, y0, t1, switch=self._switch(command, v_set),
+                                       release=self._release(y0, command))
+            check_state(model, t1, y1)
         self.y = y1
         self.ticks += 1
         self.command, self.v_set = command, v_set
         return y1
 
+    def _switch(self, command: float, v_set: float):
+        """y -> the force laws' switching functions (kernel.switches), for a model with a kernel."""
+        if self.compiled is None:
+            return None
+        P = self.model.P
+        run = kernel.switches_of if self.compiled else kernel.switches_of.py_func
+        return lambda y: run(P, np.ascontiguousarray(y, dtype=np.float64), float(command), float(v_set))
+
+    def _release(self, y, command: float) -> float:
+        """When the actuator's rate limit lets go in this tick, from its start (s; inf: it does not)."""
+        P = getattr(self.model, "P", None)
+        if P is None:
+            P = self.model.dynamic.P
+        return float(kernel.release_of(P, float(y[self.model.layout.steering]), float(command)))
+
     def outputs(self) -> Outputs:
-        if self._compiled is not None:  # the same numbers from compiled code (test_compiled.py)
-            out = self._compiled.outputs(self.t, self.y, self.command, self.v_set)
-            if out is not None:
-                return out
-        return evaluate_outputs(self.model, self.t, self.y, self.command, self.v_set)
+        if self.compiled is None:
+            return evaluate_outputs(self.model, self.t, self.y, self.command, self.v_set)
+        return evaluate(self.model, self.t, self.y, self.command, self.v_set, compiled=self.compiled)
 
 
-def evaluate_outputs(model: Model, t: float, y: np.ndarray, command: float, v_set: float) -> Outputs:
-    """Outputs of a no-slip state (dynamic level, or kinematic with its inverse dynamics); a level
-    with its own state layout (slip) reports through its own ``outputs``."""
-    own = getattr(model, "outputs", None)
-    if own is not None:
-        return own(t, y, command, v_set)
-    L = model.layout
-    tm = model.terms(y, command, v_set)
-    ch = tm.chain
-    V = float(y[L.speed])
-    heading = y[L.heading]
-    pts = cart_points(model.train, float(y[L.x]), float(y[L.y]), heading)
-    axle_speed = np.array(ch.kapB) * V
-    resistance = np.array(tm.resistance)
-    resistance_power = float(np.dot(resistance, axle_speed))
-    phis = hitch_angles(heading.tolist())
-    return Outputs(
-        t=t,
-        front=pts["A"], axle=pts["B"], com=pts["C"], rear_hitch=pts["rear_hitch"],
-        heading=np.array(heading, dtype=float),
-        hitch_angle=np.array(phis),
-        psi=np.array(ch.psi),
-        com_speed=np.array(ch.kapC) * V,
-        axle_speed=axle_speed,
-        yaw_rate=np.array(ch.kapT) * V,
-        speed=V,
-        steering=float(y[L.steering]),
-        command=command,
-        speed_setpoint=v_set,
-        resistance=resistance,
-        traction=tm.traction,
-        power=tm.traction * V,
-        resistance_power=resistance_power,
-        kinetic_energy=0.5 * tm.mass * V * V,
-        jackknife_margin=margin_of(model.train, phis, ch.psi)[0],  # the chain's psi: no second walk
-    )
+def evaluate_outputs(model, t: float, y: np.ndarray, command: float, v_set: float) -> Outputs:
+    """Outputs of a state of any level: the slip level's own, algorithm 1's from the reference
+    path, the others' from the kernel."""
+    if getattr(model, "outputs", None) is not None:
+        return model.outputs(t, y, command, v_set)
+    if getattr(model, "algorithm", 2) != 2:
+        return reference_outputs(model, t, y, command, v_set)
+    return evaluate(model, t, y, command, v_set)
 
 
 def run_scene(scene: Scene, on_output=None, **options) -> tuple[Simulation, Exception | None]:

@@ -248,7 +248,7 @@ FAULTS = [
     ("scene", drop("duration"), "duration", "(missing)", "top level", "given"),
     ("scene", rename("duration", "duraton"), "duraton", "60", "top level", "unknown field"),
     ("scene", put("train", "../trains/nope.yaml"), "train", "'../trains/nope.yaml'", "top level", "not found"),
-    ("scene", put("integrator.method", "rk5"), "method", "'rk5'", "integrator", "one of euler, heun, rk4, RK45"),
+    ("scene", put("integrator.method", "rk5"), "method", "'rk5'", "integrator", "one of euler, heun, ralston, kutta3, rk4, rk38, RK45"),
     ("scene", put("integrator.step", 0.05), "step", "0.05", "integrator", "<= 1/publish_rate = 0.02 s"),
     ("scene", put("integrator.step", 0), "step", "0", "integrator", "> 0"),
     ("scene", put("integrator.rtol", 0), "rtol", "0", "integrator", "> 0"),

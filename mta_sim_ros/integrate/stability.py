@@ -1,10 +1,11 @@
 """Linear stability of the fixed-step methods: the largest step that keeps a decaying mode decaying.
 
 A mode y' = -r y (r > 0, a pole of the model at -r 1/s) stepped with step h is multiplied per step
-by the method's stability function R(z) at z = -r h: Euler 1 + z, Heun 1 + z + z^2/2, RK4
-1 + z + z^2/2 + z^3/6 + z^4/24. It decays while |R(-r h)| < 1, i.e. while r h is below the
-method's real-axis stability limit: 2 for Euler and Heun, 2.785 for RK4. Past it the numerical
-solution grows every step whatever the physics does: garbage, not a less accurate answer.
+by the method's stability function R(z) at z = -r h, derived from its tableau (``tableau.py``;
+Euler 1 + z, Heun 1 + z + z^2/2, RK4 1 + z + z^2/2 + z^3/6 + z^4/24). It decays while
+|R(-r h)| < 1, i.e. while r h is below the method's real-axis stability limit (2 for Euler and
+Heun, about 2.785 for RK4). Past it the numerical solution grows every step whatever the physics
+does: garbage, not a less accurate answer.
 
 Adaptive solvers need no such limit: the explicit ones (RK45, DOP853) shorten their steps until
 the error estimate (and so the stability) is met; LSODA switches to BDF; Radau and BDF are
@@ -14,8 +15,10 @@ from __future__ import annotations
 
 import math
 
-# |R(-x)| = 1 for RK4 at the root of 1 - x + x^2/2 - x^3/6 + x^4/24 = -1 near 2.785.
-REAL_AXIS_LIMIT = {"euler": 2.0, "heun": 2.0, "rk4": 2.785293563405282}
+from .tableau import TABLEAUX
+
+#: each fixed-step method's real-axis stability limit, from its tableau
+REAL_AXIS_LIMIT = {name: tab.real_axis_limit for name, tab in TABLEAUX.items()}
 SAFETY = 0.9  # sub-steps are at most this share of the limit: |R| stays clearly below 1
 
 
@@ -24,14 +27,10 @@ class UnstableStepError(ValueError):
 
 
 def stability_function(method: str, z: complex) -> complex:
-    """R(z): the factor one step of ``method`` applies to y' = lambda y, z = lambda h."""
-    if method == "euler":
-        return 1 + z
-    if method == "heun":
-        return 1 + z + z * z / 2
-    if method == "rk4":
-        return 1 + z + z * z / 2 + z ** 3 / 6 + z ** 4 / 24
-    raise ValueError(f"method: {method!r} has no fixed stability function (one of {tuple(REAL_AXIS_LIMIT)})")
+    """R(z) of a fixed-step method: the factor one step applies to y' = lambda y, z = lambda h."""
+    if method not in TABLEAUX:
+        raise ValueError(f"method: {method!r} has no fixed stability function (one of {tuple(TABLEAUX)})")
+    return TABLEAUX[method].stability_function(z)
 
 
 def effective_step(step: float, tick: float) -> float:

@@ -17,33 +17,35 @@ same loop by forward-mode differentiation written out by hand: every line ``x_d 
 exact derivative of the line above it, with th'_j = kapT_j V and psi_1' = the actuator rate.
 No finite differences.
 
-Plain ``math`` on Python floats: for the handful of carts of a real train this is several times
-faster than numpy, and the recursion is sequential (cart k+1 needs psi_k), so numpy could not
-vectorize it anyway. O(n) per call: ten lists of n floats, about 0.7 us per cart (CPython 3.11).
-The integrators' hot path, ``Model.rhs``, runs this same recursion fused with the sums of the
-dynamics in one pass (``dynamics.Model._rhs_direct``) and is held equal to it bit for bit.
+This is the readable reference: one list per quantity, each line the formula of MODEL.md. The
+integrators' hot path, ``Model.rhs``, runs the same recursion fused with the sums of the dynamics
+in one pass over the carts (``kernel.rhs``), and the tests hold the two equal bit for bit.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from . import kernel
+
 
 @dataclass(frozen=True)
 class ChainGeometry:
-    """Per-cart constants of the chain, precomputed once from a Train."""
+    """Per-cart constants of the chain, read from the packed constants (``kernel.pack``), so that
+    the reference and the kernels see the same numbers."""
 
     length: tuple[float, ...]  # l_k
     lam: tuple[float, ...]  # a_k / l_k
     mu: tuple[float, ...]  # c_k / l_k
 
     @classmethod
-    def of(cls, train) -> "ChainGeometry":
-        return cls(
-            length=tuple(c.length for c in train.carts),
-            lam=tuple(c.hitch_offset / c.length for c in train.carts),
-            mu=tuple(c.com_offset / c.length for c in train.carts),
-        )
+    def of(cls, P) -> "ChainGeometry":
+        """From packed constants P, or from a Train (packed here)."""
+        if not isinstance(P, np.ndarray):
+            P = kernel.pack(P)
+        return cls(*(kernel.column(P, name) for name in ("length", "lam", "mu")))
 
 
 @dataclass

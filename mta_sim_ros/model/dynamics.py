@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import forces
+from . import forces, kernel
 from .actuator import steering_rate
 from .chain import Chain, ChainGeometry, chain
 from .spec import Train
@@ -95,14 +95,11 @@ class Model:
         self.train = train
         self.algorithm = algorithm
         self.layout = StateLayout(train.n)
-        self.geom = ChainGeometry.of(train)
+        self.P = kernel.pack(train)  # the constants as the kernels read them
+        self.geom = ChainGeometry.of(self.P)
         self.resistances = forces.cart_resistances(train)
-        self.masses = tuple(c.mass for c in train.carts)
-        self.inertias = tuple(c.yaw_inertia for c in train.carts)
-        # The hot path's constants, read once: per cart (l, a/l, (a/l)^2, (c/l)^2, m, J, f m g, drafts).
-        self._rows = tuple(zip(self.geom.length, self.geom.lam, (x * x for x in self.geom.lam),
-                               (x * x for x in self.geom.mu), self.masses, self.inertias,
-                               (r.rolling for r in self.resistances), (r.drafts for r in self.resistances)))
+        self.masses = kernel.column(self.P, "mass")
+        self.inertias = kernel.column(self.P, "inertia")
         if algorithm == 1:
             from .holonomic import HolonomicReduction
 
@@ -170,74 +167,11 @@ class Model:
     def rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
         """The Cauchy form y' = f(t, y, input) with the input held (t does not enter).
 
-        Equal to ``derivative(y, ...)[0]``; for algorithm 2 computed by ``_rhs_direct``."""
+        Algorithm 2: the kernel (``kernel.rhs``, compiled where numba runs), equal to
+        ``derivative(y, ...)[0]`` to the last bit. Algorithm 1: ``derivative``."""
         if self.algorithm == 2:
-            return self._rhs_direct(y, command, v_set)
+            return kernel.rhs_of(self.P, np.asarray(y, dtype=np.float64), float(command), float(v_set))
         return self.derivative(y, command, v_set)[0]
-
-    def _rhs_direct(self, y, command: float, v_set: float) -> np.ndarray:
-        """y' by algorithm 2 in one O(n) pass over the carts: the integrators' hot path.
-
-        The same arithmetic as ``terms`` + ``derivative`` (chain.chain's recursion, ``_direct``'s
-        sums, the resistances of forces.CartResistance.force), line for line and in the same
-        order, so the result is the same to the last bit (test_scaling.py holds them equal); but
-        no Chain, Terms or per-cart lists are built: scalar locals, one output list, one array.
-        """
-        sin, cos, sqrt, atan2, tanh = math.sin, math.cos, math.sqrt, math.atan2, math.tanh
-        yl = y.tolist() if isinstance(y, np.ndarray) else list(y)
-        n = len(self._rows)
-        psi1, V, z = yl[n + 2], yl[n + 3], yl[n + 4]
-        psi_rate = steering_rate(self.train.actuator, psi1, command)
-        v0 = self.train.smoothing_speed
-        dy = [0.0] * (n + 5)
-
-        mass = mass_rate = generalized_resistance = 0.0
-        k_val, k_dot = 1.0, 0.0  # chain.chain: kap_1 = 1
-        p_val, p_dot = psi1, psi_rate
-        theta_rate_prev = beta_dot_prev = 0.0
-        last = n - 1
-        for k, (l_k, lam, lam2, mu2, m, J, rolling, drafts) in enumerate(self._rows):
-            # chain.chain, cart k: kapT, kapB, kapC and their rates
-            s, c = sin(p_val), cos(p_val)
-            t_val = k_val * s / l_k
-            theta_rate = t_val * V
-            if k:
-                p_dot = theta_rate_prev - theta_rate - beta_dot_prev
-            s_dot, c_dot = c * p_dot, -s * p_dot
-            t_dot = (k_dot * s + k_val * s_dot) / l_k
-            b_val = k_val * c
-            cc = c * c
-            rc = sqrt(cc + mu2 * s * s)  # (mu2 * s) * s: the same rounding as chain's mu * mu * s * s
-            rc_dot = (c * c_dot + mu2 * s * s_dot) / rc
-            kc_val = k_val * rc
-            kc_dot = k_dot * rc + k_val * rc_dot
-            # _direct: M and M'
-            mass += m * kc_val * kc_val + J * t_val * t_val
-            mass_rate += 2.0 * (m * kc_val * kc_dot + J * t_val * t_dot)
-            # the resistance at B_k (CartResistance.force) and its share of the generalized force
-            axle_speed = b_val * V
-            magnitude = rolling
-            for d in drafts:
-                magnitude += forces.draft_force(d, axle_speed)
-            generalized_resistance += magnitude * tanh(axle_speed / v0) * b_val
-            dy[2 + k] = theta_rate  # th'_k
-            # chain.chain: on to cart k + 1
-            if k < last:
-                rl2 = cc + lam2 * s * s
-                rl = sqrt(rl2)
-                rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
-                beta = atan2(lam * s, c)
-                beta_dot_prev = lam * p_dot / rl2
-                k_val, k_dot = k_val * rl, k_dot * rl + k_val * rl_dot
-                p_val = yl[2 + k] - yl[3 + k] - beta
-                theta_rate_prev = theta_rate
-
-        velocity_term = 0.5 * mass_rate * V
-        _, acceleration, governor_rate = self._traction(mass, velocity_term, generalized_resistance, V, v_set, z)
-        course = yl[2] + psi1  # direction of v_A1
-        dy[0], dy[1] = V * cos(course), V * sin(course)
-        dy[n + 2], dy[n + 3], dy[n + 4] = psi_rate, acceleration, governor_rate
-        return np.array(dy)
 
     # -- energy ----------------------------------------------------------------------------
     def kinetic_energy(self, y, command: float = 0.0, v_set: float = 0.0) -> float:

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .chain import chain
+from . import kernel
 from .geometry import hitch_angles
 from .steady import SteadyStateError, steady_circle
 
@@ -30,25 +30,14 @@ def jackknife_margin(model, y) -> tuple[float, int]:
     """(smallest margin to either jackknife limit over the hitches, rad; index of that cart).
 
     Margin of cart k (k >= 2) = min(max_hitch_angle_k - |phi_k|, pi/2 - |psi_k|). A single cart
-    has no hitch: (inf, -1)."""
-    if model.layout.n == 1:
-        return math.inf, -1
-    heading = [float(v) for v in y[model.layout.heading]]
-    psi1 = float(y[model.layout.steering])
-    ch = chain(model.geom, heading, psi1, 0.0, 0.0)
-    return margin_of(model.train, hitch_angles(heading), ch.psi)
-
-
-def margin_of(train, phis, psi) -> tuple[float, int]:
-    """:func:`jackknife_margin` from hitch angles phi_k (n - 1) and the chain's psi_k (n) already
-    at hand (psi does not depend on the speed)."""
-    best, where = math.inf, -1
-    for k in range(1, len(train.carts)):
-        limit = train.carts[k].max_hitch_angle
-        margin = min(limit - abs(phis[k - 1]), JACKKNIFE_PSI - abs(psi[k]))
-        if margin < best:
-            best, where = margin, k
-    return best, where
+    has no hitch: (inf, -1). Computed by ``kernel.margin`` (psi_k from the chain at the state's
+    pose; it does not depend on the speed)."""
+    # every level's state starts with x, y, th_1..th_n, psi_1: the kernel reads only those
+    P = getattr(model, "P", None)
+    if P is None:
+        P = model.dynamic.P
+    best, where = kernel.margin_of(P, np.ascontiguousarray(y[: model.layout.n + 3], dtype=np.float64))
+    return float(best), int(where)
 
 
 def check_state(model, t: float, y) -> None:

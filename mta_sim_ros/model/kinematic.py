@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from . import kernel
 from .actuator import steering_rate
 from .chain import ChainGeometry, chain
 from .dynamics import Model, StateLayout, Terms
@@ -48,13 +49,16 @@ class KinematicModel:
                 f"fidelity kinematic: traction law {train.traction.law!r} of train '{train.name}' does not "
                 f"command a speed; the kinematic level needs one of {', '.join(COMMANDED_SPEED_LAWS)}")
         self.train = train
+        self.algorithm = algorithm
         self.layout = StateLayout(train.n)
-        self.geom = ChainGeometry.of(train)
+        self.P = kernel.pack(train, law="kinematic")  # the kernels' y' of this level: the chain only
+        self.geom = ChainGeometry.of(self.P)
         self.dynamic = Model(train, algorithm=algorithm)  # the same train with its own traction law
         # The same equations with the prescribed-speed law: its traction is the inverse dynamics
         # F_A1 = M V' + R + sum F_Bk kapB_k for V' = (v_set - V) / response_time, response_time = 1 s.
         inverse = dataclasses.replace(train, traction=Traction("prescribed_speed", response_time=1.0))
         self._inverse = Model(inverse, algorithm=algorithm)
+        self.P_outputs = self._inverse.P  # outputs_of(P_outputs, y, command, V + V') = this level's outputs
 
     def from_dynamic_state(self, y: np.ndarray) -> np.ndarray:
         """The kinematic state for a dynamic one: the same pose and speed, V' = 0."""
@@ -69,7 +73,12 @@ class KinematicModel:
         return y
 
     def rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
-        """y' = (G V, psi_1', V', 0): the chain only, no forces."""
+        """y' = (G V, psi_1', V', 0): the chain only, no forces (``kernel.rhs`` with law kinematic;
+        ``reference_rhs`` is the same from chain.py)."""
+        return kernel.rhs_of(self.P, np.asarray(y, dtype=np.float64), float(command), float(v_set))
+
+    def reference_rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
+        """``rhs`` from the readable chain (chain.py)."""
         L = self.layout
         yl = y.tolist() if isinstance(y, np.ndarray) else list(y)
         psi1, V, accel = yl[L.steering], yl[L.speed], yl[L.governor]
@@ -80,6 +89,10 @@ class KinematicModel:
         dy.extend(kt * V for kt in ch.kapT)
         dy.extend((psi_rate, accel, 0.0))
         return np.array(dy)
+
+    def output_input(self, y, v_set: float) -> float:
+        """The set-point under which ``P_outputs`` (prescribed speed, 1 s lag) has V' = the ramp slope."""
+        return float(y[self.layout.speed]) + float(y[self.layout.governor])
 
     def terms(self, y, command: float, v_set: float) -> Terms:
         """Inverse dynamics at y: the traction that gives the prescribed V' (the held v_set is not

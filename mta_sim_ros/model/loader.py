@@ -27,7 +27,7 @@ import yaml
 from mta_sim_ros import maneuvers
 from mta_sim_ros.model import spec
 
-INTEGRATOR_METHODS = ("euler", "heun", "rk4", "RK45", "DOP853", "LSODA", "Radau", "BDF")
+INTEGRATOR_METHODS = spec.INTEGRATOR_METHODS
 TRACTION_LAWS = ("constant", "governor", "prescribed_speed")
 
 
@@ -226,6 +226,15 @@ class _Section:
         value = self.values[key]
         if not isinstance(value, str) or not value.strip():
             self.fail(key, value, "a non-empty string")
+        return value
+
+    def flag(self, key: str, default: Any = _REQUIRED) -> bool:
+        """true or false."""
+        if key not in self.values:
+            return self._absent(key, default, "true or false")
+        value = self.values[key]
+        if not isinstance(value, bool):
+            self.fail(key, value, "true or false")
         return value
 
     def choice(self, key: str, choices: Iterable[str], default: Any = _REQUIRED) -> str:
@@ -464,7 +473,7 @@ def _initial(top: _Section, train: spec.Train) -> spec.Initial:
 
 def _integrator(top: _Section, publish_rate: float) -> spec.Integrator:
     """Integrator method and tolerances; the step must fit in one publishing period."""
-    s = top.section("integrator", ("method", "step", "rtol", "atol"))
+    s = top.section("integrator", ("method", "step", "rtol", "atol", "split_kinks"))
     default = spec.Integrator()
     period = 1.0 / publish_rate
     step_rule = Rule(f"> 0 and <= 1/publish_rate = {period:.6g} s", lambda x: 0 < x <= period * (1 + 1e-12))
@@ -473,6 +482,7 @@ def _integrator(top: _Section, publish_rate: float) -> spec.Integrator:
         step=s.number("step", step_rule, default.step),
         rtol=s.number("rtol", POSITIVE, default.rtol),
         atol=s.number("atol", POSITIVE, default.atol),
+        split_kinks=s.flag("split_kinks", default.split_kinks),
     )
 
 

@@ -250,8 +250,8 @@ class SlipModel:
     def outputs(self, t: float, y, command: float, v_set: float):
         """The same Outputs as the other levels. psi_k (k >= 2) is the angle from e_k to the
         actual velocity of A_k; axle_speed is v_Bk . e_k, the speed the resistance acts on."""
-        from ..sim import Outputs  # sim imports the models; this keeps the import one way at load
         from .guards import jackknife_margin
+        from .outputs import Outputs
 
         L = self.layout
         y = np.asarray(y, dtype=float)

@@ -144,12 +144,19 @@ class Initial:
     hitch_angles: tuple[float, ...] = ()  # rad, th_{k-1} - th_k for k = 2..n; empty = straight
 
 
+#: every integrator a scene may name: the fixed-step tableaux of integrate/tableau.py, then scipy's
+INTEGRATOR_METHODS = ("euler", "heun", "ralston", "kutta3", "rk4", "rk38", "RK45", "DOP853", "LSODA", "Radau", "BDF")
+
+
 @dataclass(frozen=True)
 class Integrator:
-    method: str = "rk4"  # euler | heun | rk4 | RK45 | DOP853 | LSODA | Radau | BDF
+    method: str = "rk4"  # one of INTEGRATOR_METHODS
     step: float = 0.01  # s, fixed-step methods (the largest step for adaptive ones)
     rtol: float = 1e-8  # adaptive methods
     atol: float = 1e-10  # adaptive methods
+    # split steps where the right-hand side has a kink (the steering rate limit letting go, a force
+    # limit engaging): each method keeps its order there (integrate/steppers.py)
+    split_kinks: bool = True
 
 
 FIDELITY_LEVELS = ("kinematic", "dynamic", "slip")  # cheapest first; see fidelity.py

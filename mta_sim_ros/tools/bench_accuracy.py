@@ -120,12 +120,10 @@ def log(msg: str) -> None:
 
 
 def compiled_available():
-    """'numba <version>' when the compiled tick (model/compiled.py) can run here, else None."""
-    try:
-        from ..model import compiled
-    except ImportError:
-        return None
-    return f"numba {compiled.numba_version()}"
+    """'numba <version>' when the compiled kernels (model/kernel.py) run here, else None."""
+    from ..model import jit
+
+    return jit.NOTE if jit.ENABLED else None
 
 
 def simulation(scene, **options):

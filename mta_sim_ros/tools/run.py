@@ -33,6 +33,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rate", type=float, help="publish (tick) rate, Hz, overrides the scene")
     p.add_argument("--fidelity", choices=("auto",) + LEVELS,
                    help="model level, overrides the scene's fidelity (auto: the cheapest meeting the scene's needs)")
+    p.add_argument("--no-split-kinks", dest="split_kinks", action="store_false", default=None,
+                   help="step straight across the kinks of the right-hand side (the steering rate limit letting "
+                        "go, a force limit engaging) instead of splitting the step there (the scene's "
+                        "integrator.split_kinks, default true)")
     p.add_argument("--frame-id", default="map", help="frame of hitch_poses (default: map)")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary on stdout")
 
@@ -92,9 +96,11 @@ def main(args: argparse.Namespace) -> int:
         from ..model.slip import DEFAULT_METHOD as method  # the slip level's own (its tyres are stiff)
     step = args.step or (1.0 / (args.rate or scene.publish_rate) if choice.level == "slip" and not args.method
                          else scene.integrator.step)  # as Simulation takes them
+    split_kinks = getattr(args, "split_kinks", None)
     options = {"method": method or scene.integrator.method, "step": step,
                "rate": args.rate or scene.publish_rate, "algorithm": 2,
-               "fidelity": choice.level, "fidelity_reason": choice.reason}
+               "fidelity": choice.level, "fidelity_reason": choice.reason,
+               "split_kinks": scene.integrator.split_kinks if split_kinks is None else split_kinks}
     cart_names = [c.name for c in scene.train.carts]
     tick = 1.0 / options["rate"]
     summary = RunSummary(tuple(cart_names))
@@ -117,7 +123,7 @@ def main(args: argparse.Namespace) -> int:
                 progress.update(out.t)
 
             sim, stopped = run_scene(scene, on_output=record, method=args.method, step=args.step, rate=args.rate,
-                                     fidelity=choice.level)
+                                     fidelity=choice.level, split_kinks=options["split_kinks"])
     except BagError as err:
         progress.close()
         print(f"mta run: {err}", file=sys.stderr)
@@ -126,8 +132,8 @@ def main(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - started
     extra = {
         "fidelity": choice.reason,
-        "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations; "
-                      f"{sim.compiled_note}",
+        "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations, "
+                      f"{sim.kinks} kinks split at; {sim.compiled_note}",
         "wall time": f"{wall:.2f} s (x{summary.duration / wall:.0f} real time)" if wall > 0 else "",
         "bag": str(bag_path),
     }

@@ -1,0 +1,650 @@
+"""The physics the simulator runs, written once: compiled by numba, or run as plain Python.
+
+Everything a tick computes lives here, on one flat float64 array of the train's constants (``P``)
+and the state array, in the subset of Python numba compiles (see ``jit.py`` for the two lives of
+each function and for why all of it sits in one file):
+
+    the packed constants   HEAD, CART and DRAFT declare each field once (name, meaning, value);
+                           ``pack`` and every index the kernels use are derived from them
+    rhs                    y' of the dynamic level by the article's algorithm 2 (MODEL.md [12]-[16],
+                           [3], [9]-[11]): the chain walk fused with the mass M, its rate M' and
+                           the force laws; with law KINEMATIC, the kinematic level's y' = (G V, psi_1',
+                           V', 0)
+    outputs                every reported quantity of a state (points, speeds, forces, power,
+                           energy, jackknife margin)
+    margin                 the jackknife margin the validity guards use
+    switches               the points where a force law is not smooth (a governor limit engaging,
+                           a speed crossing zero under a speed-proportional draft, ...)
+    actuator_release       when the steering rate limit lets go, in closed form
+    rk_step, advance       one step / one tick of any explicit Runge-Kutta tableau, with the step
+                           split at the actuator's release and at every located switch
+
+The readable reference the tests hold these to: ``chain.py`` (the recursion), ``dynamics.Model.terms``
+(algorithm 2 term by term) and ``holonomic.py`` (algorithm 1). Arithmetic here is the reference's,
+in the same order (IEEE, no fast-math), so the kernel's y' equals the reference's to the last bit.
+
+State layout (dynamics.StateLayout): x_A1, y_A1, th_1..th_n, psi_1, V, z (index n + 4: the
+governor's integral, or the kinematic level's ramp slope V').
+"""
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from types import SimpleNamespace
+
+import numpy as np
+
+from . import forces
+from .jit import entry, jitable
+
+
+# -- the packed constants: each field declared once ------------------------------------------------
+
+class Fields:
+    """A block of P: (name, meaning, value from a context) per field. ``index`` is the IntEnum the
+    kernels read (``P[b + CART.index.mass]``), ``values(ctx)`` the numbers ``pack`` writes."""
+
+    def __init__(self, block: str, rows):
+        self.block = block
+        self.rows = tuple(rows)
+        self.index = IntEnum(block, [name for name, _, _ in self.rows], start=0)
+        self.size = len(self.rows)
+        self.meaning = {name: meaning for name, meaning, _ in self.rows}
+
+    def values(self, ctx) -> list[float]:
+        return [float(value(ctx)) for _, _, value in self.rows]
+
+
+#: traction law codes; KINEMATIC is the kinematic level (speed prescribed, no forces in y')
+CONSTANT, GOVERNOR, PRESCRIBED, KINEMATIC = 0, 1, 2, 3
+LAWS = {"constant": CONSTANT, "governor": GOVERNOR, "prescribed_speed": PRESCRIBED, "kinematic": KINEMATIC}
+
+HEAD = Fields("Head", (
+    ("n", "number of carts n", lambda s: s.train.n),
+    ("law", "traction law code (LAWS)", lambda s: LAWS[s.law]),
+    ("smoothing_speed", "v0 of the resistances' tanh(v / v0) through v = 0, m/s", lambda s: s.train.smoothing_speed),
+    ("time_constant", "steering actuator time constant tau, s", lambda s: s.train.actuator.time_constant),
+    ("max_rate", "steering actuator rate limit, rad/s", lambda s: s.train.actuator.max_rate),
+    ("max_angle", "steering angle limit, rad", lambda s: s.train.actuator.max_angle),
+    ("force", "constant law: F_A1, N", lambda s: s.traction.force),
+    ("max_force", "governor: adhesion limit of F_A1, N", lambda s: s.traction.max_force),
+    ("max_power", "governor: engine power limit of F_A1 |V|, W", lambda s: s.traction.max_power),
+    ("kp", "governor: proportional gain, N per m/s", lambda s: s.traction.kp),
+    ("ki", "governor: integral gain, N per m", lambda s: s.traction.ki),
+    ("windup_time", "governor: back-calculation anti-windup time, s", lambda s: s.traction.windup_time),
+    ("response_time", "prescribed speed: first-order lag, s", lambda s: s.traction.response_time),
+    ("max_accel", "prescribed speed: acceleration limit, m/s^2", lambda s: s.traction.max_accel),
+    ("speed_switches", "1 when a draft grows with |speed| (ASABE B != 0): its speed's sign is a switch",
+     lambda s: any(d.B != 0.0 for d in s.train.draft)),
+))
+
+CART = Fields("Cart", (
+    ("length", "l_k, A_k to B_k, m", lambda s: s.cart.length),
+    ("lam", "lambda_k = a_k / l_k", lambda s: s.cart.hitch_offset / s.cart.length),
+    ("lam2", "lambda_k^2", lambda s: (s.cart.hitch_offset / s.cart.length) ** 2),
+    ("mu", "mu_k = c_k / l_k", lambda s: s.cart.com_offset / s.cart.length),
+    ("mu2", "mu_k^2", lambda s: (s.cart.com_offset / s.cart.length) ** 2),
+    ("mass", "m_k, kg", lambda s: s.cart.mass),
+    ("inertia", "J_k about C_k, kg m^2", lambda s: s.cart.yaw_inertia),
+    ("rolling", "sum of the rolling elements' f m g at B_k, N", lambda s: s.resistance.rolling),
+    ("draft_first", "index of this cart's first draft in the DRAFT block", lambda s: s.draft_first),
+    ("draft_count", "number of drafts at this cart's B_k", lambda s: len(s.resistance.drafts)),
+    ("max_hitch", "largest |hitch angle| of the coupling in front of this cart, rad", lambda s: s.cart.max_hitch_angle),
+    ("com_offset", "c_k, B_k forward to C_k, m", lambda s: s.cart.com_offset),
+    ("hitch_offset", "a_k, B_k back to A_{k+1}, m", lambda s: s.cart.hitch_offset),
+))
+
+DRAFT = Fields("Draft", (
+    ("soil_factor", "F_i", lambda d: d.soil_factor),
+    ("A", "ASABE D497 A, N per width per depth", lambda d: d.A),
+    ("B", "B, per km/h", lambda d: d.B),
+    ("C", "C, per (km/h)^2", lambda d: d.C),
+    ("width", "W, m or rows/tools", lambda d: d.width),
+    ("depth", "T, cm (1 for seeding tools)", lambda d: d.depth),
+))
+
+H, C, D = HEAD.index, CART.index, DRAFT.index
+HEAD_SIZE, CART_SIZE, DRAFT_SIZE = HEAD.size, CART.size, DRAFT.size
+
+
+def pack(train, law: str | None = None, traction=None) -> np.ndarray:
+    """The constants of ``train`` as one float64 array: HEAD, then CART per cart, then DRAFT per
+    draft (grouped by cart). ``law`` / ``traction`` override the train's traction law (the
+    kinematic level packs law 'kinematic' and, for its inverse dynamics, 'prescribed_speed')."""
+    traction = traction or train.traction
+    law = law or traction.law
+    if law not in LAWS:
+        raise ValueError(f"traction law {law!r} has no kernel (one of {', '.join(LAWS)})")
+    values = HEAD.values(SimpleNamespace(train=train, law=law, traction=traction))
+    drafts = []
+    for k, (cart, resistance) in enumerate(zip(train.carts, forces.cart_resistances(train))):
+        values += CART.values(SimpleNamespace(cart=cart, resistance=resistance, draft_first=len(drafts)))
+        drafts += resistance.drafts
+    for d in drafts:
+        values += DRAFT.values(d)
+    return np.array(values, dtype=np.float64)
+
+
+def column(P: np.ndarray, name: str) -> tuple[float, ...]:
+    """One CART field of every cart, read from the packed array (for the reference code)."""
+    n, i = int(P[H.n]), C[name]
+    return tuple(float(P[HEAD_SIZE + CART_SIZE * k + i]) for k in range(n))
+
+
+# -- small pieces ---------------------------------------------------------------------------------
+
+@jitable
+def pymin(a, b):
+    """Python's min(a, b): a unless b is strictly smaller (the same answer for -0.0 and NaN)."""
+    return b if b < a else a
+
+
+@jitable
+def pymax(a, b):
+    return b if b > a else a
+
+
+@jitable
+def steering_rate(P, psi1, command):
+    """psi_1' = clip((clip(command, +-max_angle) - psi_1) / tau, +-max_rate) (actuator.py)."""
+    max_angle, max_rate = P[H.max_angle], P[H.max_rate]
+    target = pymin(pymax(command, -max_angle), max_angle)
+    return pymin(pymax((target - psi1) / P[H.time_constant], -max_rate), max_rate)
+
+
+@jitable
+def resistance_magnitude(P, rolling, first, count, axle_speed):
+    """f m g plus the drafts D = F_i (A + B S + C S^2) W T at one axle, S = |speed| in km/h, summed
+    in the order of forces.CartResistance.force."""
+    total = rolling
+    base = HEAD_SIZE + CART_SIZE * int(P[H.n])
+    for i in range(first, first + count):
+        d = base + DRAFT_SIZE * i
+        S = abs(axle_speed) * forces.MS_TO_KMH
+        total += P[d + D.soil_factor] * (P[d + D.A] + P[d + D.B] * S + P[d + D.C] * S * S) * P[d + D.width] \
+            * P[d + D.depth]
+    return total
+
+
+TWO_PI = 2.0 * math.pi
+
+
+@jitable
+def wrap_angle(a):
+    """a wrapped to [-pi, pi] (geometry.wrap_angle; exact inside the interval)."""
+    if -math.pi <= a <= math.pi:
+        return a
+    return a - TWO_PI * math.floor(a / TWO_PI + 0.5)
+
+
+# -- the equations -----------------------------------------------------------------------------------
+
+#: columns of ``rec`` (rhs's record of each cart's chain factors, for the outputs)
+KAPT, KAPB, KAPC, PSI, RES = range(5)
+REC = 5
+
+
+@jitable
+def rhs(P, y, command, v_set, dy, rec):
+    """y' into ``dy``; returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's
+    kapT, kapB, kapC, psi and resistance F_Bk go into its first REC columns.
+
+    The chain (chain.py): walking back from the tractor, V_k = kap_k V and psi_k give
+    th'_k = kap_k sin(psi_k) V / l_k, s'_Bk = kap_k cos(psi_k) V, s'_Ck = kap_k rc_k V; each rate
+    ``*_dot`` is the exact time derivative of the line above it. Algorithm 2 (dynamics.py):
+    M = sum m kapC^2 + J kapT^2, R = 1/2 M' V, M V' = F_A1 - sum F_Bk kapB_k - R."""
+    n = int(P[H.n])
+    law = int(P[H.law])
+    forces_on = law != KINEMATIC
+    psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
+    psi_rate = steering_rate(P, psi1, command)
+    v0 = P[H.smoothing_speed]
+
+    mass = 0.0
+    mass_rate = 0.0
+    generalized_resistance = 0.0
+    k_val, k_dot = 1.0, 0.0  # kap_1 = 1
+    p_val, p_dot = psi1, psi_rate
+    theta_rate_prev = 0.0
+    beta_dot_prev = 0.0
+    last = n - 1
+    for k in range(n):
+        b = HEAD_SIZE + CART_SIZE * k
+        l_k = P[b + C.length]
+        s, c = math.sin(p_val), math.cos(p_val)
+        t_val = k_val * s / l_k  # kapT_k
+        theta_rate = t_val * V
+        if k:  # psi_k = th_{k-1} - th_k - beta_{k-1}
+            p_dot = theta_rate_prev - theta_rate - beta_dot_prev
+        s_dot, c_dot = c * p_dot, -s * p_dot
+        b_val = k_val * c  # kapB_k
+        cc = c * c
+        if forces_on:
+            mu2 = P[b + C.mu2]
+            t_dot = (k_dot * s + k_val * s_dot) / l_k
+            rc = math.sqrt(cc + mu2 * s * s)  # s'_Ck / V_k; (mu2 * s) * s rounds as chain's mu * mu * s * s
+            rc_dot = (c * c_dot + mu2 * s * s_dot) / rc
+            kc_val = k_val * rc  # kapC_k
+            kc_dot = k_dot * rc + k_val * rc_dot
+            m, J = P[b + C.mass], P[b + C.inertia]
+            mass += m * kc_val * kc_val + J * t_val * t_val
+            mass_rate += 2.0 * (m * kc_val * kc_dot + J * t_val * t_dot)
+            axle_speed = b_val * V
+            magnitude = resistance_magnitude(P, P[b + C.rolling], int(P[b + C.draft_first]),
+                                             int(P[b + C.draft_count]), axle_speed)
+            resistance = magnitude * math.tanh(axle_speed / v0)
+            generalized_resistance += resistance * b_val
+            if rec.shape[0]:
+                rec[k, KAPC], rec[k, RES] = kc_val, resistance
+        if rec.shape[0]:
+            rec[k, KAPT], rec[k, KAPB], rec[k, PSI] = t_val, b_val, p_val
+        dy[2 + k] = theta_rate
+        if k < last:  # on to cart k + 1: V_{k+1} = V_k rl_k, psi_{k+1} = th_k - th_{k+1} - beta_k
+            lam, lam2 = P[b + C.lam], P[b + C.lam2]
+            rl2 = cc + lam2 * s * s
+            rl = math.sqrt(rl2)
+            rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
+            beta = math.atan2(lam * s, c)
+            beta_dot_prev = lam * p_dot / rl2  # d/dt atan2(lam s, c)
+            k_val, k_dot = k_val * rl, k_dot * rl + k_val * rl_dot
+            p_val = y[2 + k] - y[3 + k] - beta
+            theta_rate_prev = theta_rate
+
+    traction = 0.0
+    governor_rate = 0.0
+    if law == KINEMATIC:
+        acceleration = z  # the ramp slope of this tick (kinematic.py)
+    else:
+        velocity_term = 0.5 * mass_rate * V
+        if law == PRESCRIBED:  # forces.prescribed_acceleration, then inverse dynamics
+            a = (v_set - V) / P[H.response_time]
+            acceleration = pymin(pymax(a, -P[H.max_accel]), P[H.max_accel])
+            traction = mass * acceleration + generalized_resistance + velocity_term
+        else:
+            if law == GOVERNOR:  # forces.governor
+                error = v_set - V
+                u = P[H.kp] * error + z
+                limit = traction_limit(P, V)
+                traction = pymin(pymax(u, -limit), limit)
+                governor_rate = P[H.ki] * error + (traction - u) / P[H.windup_time]
+            else:
+                traction = P[H.force]
+            acceleration = (traction - generalized_resistance - velocity_term) / mass
+    course = y[2] + psi1  # direction of v_A1
+    dy[0] = V * math.cos(course)
+    dy[1] = V * math.sin(course)
+    dy[n + 2] = psi_rate
+    dy[n + 3] = acceleration
+    dy[n + 4] = governor_rate
+    return traction, mass
+
+
+@jitable
+def traction_limit(P, V):
+    """Largest |F_A1| at speed V: adhesion, and engine power over speed (forces.traction_limit)."""
+    if math.isinf(P[H.max_power]):
+        return P[H.max_force]
+    return pymin(P[H.max_force], P[H.max_power] / pymax(abs(V), 0.1))
+
+
+@jitable
+def margin(P, y):
+    """(smallest jackknife margin over the hitches, rad; index of that cart, -1 for none): per
+    cart k >= 2, min(max_hitch_k - |phi_k|, pi/2 - |psi_k|) with psi_k from the chain (guards.py)."""
+    n = int(P[H.n])
+    best, where = math.inf, -1
+    p_val = y[n + 2]
+    for k in range(n - 1):
+        b = HEAD_SIZE + CART_SIZE * k
+        lam = P[b + C.lam]
+        beta = math.atan2(lam * math.sin(p_val), math.cos(p_val))
+        p_val = y[2 + k] - y[3 + k] - beta  # psi_{k+1}
+        phi = wrap_angle(y[2 + k] - y[3 + k])
+        m = min(P[b + CART_SIZE + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(p_val))
+        if m < best:
+            best, where = m, k + 1
+    return best, where
+
+
+#: closer than this to a jackknife limit (rad), the Python guard (guards.check_state) decides
+GUARD_SLACK = 1e-9
+
+
+@jitable
+def clear(P, y):
+    """True when y is finite and every hitch is more than GUARD_SLACK inside its limits."""
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return margin(P, y)[0] > GUARD_SLACK
+
+
+#: per-cart output columns after the REC ones: A, B, C (x, y), hitch angle phi_k, s'_Ck, s'_Bk, th'_k
+AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT = range(REC, REC + 10)
+OUT = REC + 10
+#: scalar outputs
+REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN = range(6)
+SCALARS = 6
+
+
+@jitable
+def outputs(P, y, command, v_set, cart, sc, dy):
+    """Every reported quantity of state y into ``cart`` (n x OUT) and ``sc`` (SCALARS): the points
+    of geometry.cart_points, the chain's factors times V, the forces, and the jackknife margin."""
+    n = int(P[H.n])
+    traction, mass = rhs(P, y, command, v_set, dy, cart)
+    V = y[n + 3]
+    ax, ay = y[0], y[1]
+    res_power = 0.0
+    best = math.inf
+    for k in range(n):
+        b = HEAD_SIZE + CART_SIZE * k
+        th = y[2 + k]
+        ex, ey = math.cos(th), math.sin(th)
+        cart[k, AX], cart[k, AY] = ax, ay
+        bx, by = ax - P[b + C.length] * ex, ay - P[b + C.length] * ey
+        cart[k, BX], cart[k, BY] = bx, by
+        cart[k, CX], cart[k, CY] = bx + P[b + C.com_offset] * ex, by + P[b + C.com_offset] * ey
+        ax, ay = bx - P[b + C.hitch_offset] * ex, by - P[b + C.hitch_offset] * ey
+        cart[k, VC], cart[k, VB], cart[k, VT] = cart[k, KAPC] * V, cart[k, KAPB] * V, cart[k, KAPT] * V
+        res_power += cart[k, RES] * cart[k, VB]
+        if k:
+            phi = wrap_angle(y[1 + k] - th)
+            cart[k, PHI] = phi
+            m = min(P[b + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(cart[k, PSI]))
+            if m < best:
+                best = m
+        else:
+            cart[k, PHI] = 0.0
+    sc[REAR_X], sc[REAR_Y] = ax, ay
+    sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
+    return traction
+
+
+# -- where the right-hand side is not smooth ----------------------------------------------------------
+
+#: most switching functions ``switches`` writes beyond the per-cart ones
+FORCE_SWITCHES = 3
+
+
+@jitable
+def switches(P, y, command, v_set, g):
+    """The force laws' switching functions at y into g; returns how many. Each is continuous and
+    changes sign exactly where a law changes branch (a kink of y'):
+        governor          |u| - limit(V) (the force limit engages), max_force max(|V|, 0.1) - max_power
+                          (adhesion against power limit), |V| - 0.1 (the power limit's speed floor)
+        prescribed speed  |v_set - V| / response_time - max_accel (the acceleration limit)
+        drafts with B     s'_Bk of each such cart (|S| has a corner at 0)
+    The actuator's rate limit is handled in closed form (``actuator_release``)."""
+    n = int(P[H.n])
+    law = int(P[H.law])
+    V, z = y[n + 3], y[n + 4]
+    m = 0
+    if law == GOVERNOR:
+        u = P[H.kp] * (v_set - V) + z
+        if not (math.isinf(P[H.max_force]) and math.isinf(P[H.max_power])):
+            g[m] = abs(u) - traction_limit(P, V)
+            m += 1
+        if not math.isinf(P[H.max_power]):
+            if not math.isinf(P[H.max_force]):
+                g[m] = P[H.max_force] * pymax(abs(V), 0.1) - P[H.max_power]
+                m += 1
+            g[m] = abs(V) - 0.1
+            m += 1
+    elif law == PRESCRIBED and not math.isinf(P[H.max_accel]):
+        g[m] = abs(v_set - V) / P[H.response_time] - P[H.max_accel]
+        m += 1
+    if P[H.speed_switches] != 0.0 and law != KINEMATIC:
+        k_val = 1.0
+        p_val = y[n + 2]
+        for k in range(n):
+            b = HEAD_SIZE + CART_SIZE * k
+            s, c = math.sin(p_val), math.cos(p_val)
+            if P[b + C.draft_count] > 0:
+                g[m] = k_val * c * V  # s'_Bk
+                m += 1
+            if k < n - 1:
+                lam = P[b + C.lam]
+                k_val = k_val * math.sqrt(c * c + P[b + C.lam2] * s * s)
+                p_val = y[2 + k] - y[3 + k] - math.atan2(lam * s, c)
+    return m
+
+
+@jitable
+def actuator_release(P, psi1, command):
+    """Time (s) until the steering actuator leaves its rate limit, with the command held: inf when
+    it is not rate-limited. While limited, psi_1 moves at +-max_rate exactly (a straight line), and
+    the limit lets go where |target - psi_1| = tau max_rate."""
+    max_angle, max_rate, tau = P[H.max_angle], P[H.max_rate], P[H.time_constant]
+    target = pymin(pymax(command, -max_angle), max_angle)
+    gap = abs(target - psi1)
+    if not gap / tau > max_rate:
+        return math.inf
+    return (gap - tau * max_rate) / max_rate
+
+
+@jitable
+def no_switches(P, y, command, v_set, g):
+    """``switches`` for a right-hand side without known switches."""
+    return 0
+
+
+# -- explicit Runge-Kutta, any tableau ----------------------------------------------------------------
+
+@jitable
+def model_rhs(P, t, y, command, v_set, dy, rec):
+    """The stepping routine's form of ``rhs`` (t does not enter: the input is held)."""
+    rhs(P, y, command, v_set, dy, rec)
+
+
+@jitable
+def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec):
+    """One step of length h of the explicit tableau T from y into ``out``; returns the stages.
+
+    T (``integrate.tableau.Tableau.packed``) holds the tableau as the classic methods are
+    printed, integer numerators over a common denominator per row: row i < s is (d_i, a_i0 ..
+    a_i,s-1), stage i is y + (h / d_i) sum_j a_ij k_j; row s is (d, b_0 .. b_s-1), the step
+    y + (h / d) sum_j b_j k_j; row s + 1 is (0, c_0 .. c_s-1). Sums run left to right over the
+    non-zero entries: for euler, heun and rk4 the arithmetic of their textbook formulas, to the
+    last bit."""
+    stages = T.shape[0] - 2
+    size = y.shape[0]
+    f(P, t, y, command, v_set, K[0], rec)
+    for i in range(1, stages + 1):
+        scale = h / T[i, 0]
+        for m in range(size):
+            acc = 0.0
+            first = True
+            for j in range(i if i < stages else stages):
+                a = T[i, 1 + j]
+                if a != 0.0:
+                    term = a * K[j, m]
+                    acc = term if first else acc + term
+                    first = False
+            value = y[m] if first else y[m] + scale * acc
+            if i < stages:
+                tmp[m] = value
+            else:
+                out[m] = value
+        if i < stages:
+            f(P, t + T[stages + 1, 1 + i] * h, tmp, command, v_set, K[i], rec)
+    return stages
+
+
+#: most splits in one step (a switch crossed back and forth); past it the step is taken whole
+MAX_SPLITS = 16
+#: a kink closer than this share of a step to either end of it is at that end (no split)
+EDGE = 1e-12
+
+
+@jitable
+def _changed(g0, g1, m, changed):
+    """Which of the first m switching functions changed sign (> 0 against not > 0); how many."""
+    count = 0
+    for j in range(m):
+        changed[j] = (g0[j] > 0.0) != (g1[j] > 0.0)
+        if changed[j]:
+            count += 1
+    return count
+
+
+@jitable
+def illinois_point(lo, hi, f_lo, f_hi):
+    """The next trial of the Illinois method (regula falsi) on the bracket [lo, hi]."""
+    tau = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+    return tau if lo < tau < hi else 0.5 * (lo + hi)
+
+
+@jitable
+def illinois_update(lo, hi, f_lo, f_hi, side, tau, f_tau, far):
+    """The bracket after a trial (tau, f_tau): the end whose sign it shares moves to it, and the
+    other end's value is halved when the same end moved twice running (Illinois), which keeps
+    the convergence superlinear. ``far`` is the sign (> 0) of the bracket's far end. Returns
+    (lo, hi, f_lo, f_hi, side), side = +1 when hi moved, -1 when lo did."""
+    if (f_tau > 0.0) == far:
+        if side == 1:
+            f_lo *= 0.5
+        return lo, tau, f_lo, f_tau, 1
+    if side == -1:
+        f_hi *= 0.5
+    return tau, hi, f_tau, f_hi, -1
+
+
+@jitable
+def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, rec, g):
+    """The step length in (0, h] at which switching function j changes sign along this method's
+    step from y (the Illinois method on tau -> g_j(step(y, tau))). Returns (tau on the far side
+    of the switch, right-hand sides evaluated)."""
+    lo, hi = 0.0, h
+    f_lo, f_hi = g_lo, g_hi
+    far = f_hi > 0.0
+    side = 0
+    nfev = 0
+    for _ in range(100):
+        if hi - lo <= 4e-16 * h + 1e-300:
+            break
+        tau = illinois_point(lo, hi, f_lo, f_hi)
+        nfev += rk_step(f, P, T, t, y, command, v_set, tau, K, tmp, trial, rec)
+        sw(P, trial, command, v_set, g)
+        lo, hi, f_lo, f_hi, side = illinois_update(lo, hi, f_lo, f_hi, side, tau, g[j], far)
+    return hi, nfev
+
+
+@jitable
+def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
+    """Integrate from t0 to t1 with the input held: ceil((t1 - t0) / max_step) equal steps of the
+    tableau T. With ``split``, a step that holds a kink is cut there and finished from it: at the
+    actuator's release (closed form, ``actuator_release``) and where a switching function
+    (``sw``) changes sign (located along the step, ``_locate``), so the method keeps its order on
+    each smooth piece. Returns (y1, right-hand sides evaluated, kinks split at)."""
+    size = y0.shape[0]
+    K = np.empty((T.shape[0] - 2, size))
+    tmp = np.empty(size)
+    y = y0.copy()
+    y1 = np.empty(size)
+    rec = np.empty((0, REC))
+    count = max(1, math.ceil((t1 - t0) / max_step - 1e-9))
+    h = (t1 - t0) / count
+    nfev = 0
+    if not split:
+        for i in range(count):
+            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec)
+            y, y1 = y1, y
+        return y, nfev, 0
+    n = int(P[H.n]) if P.shape[0] else 0
+    width = FORCE_SWITCHES + n + 1
+    g0, g1, g = np.empty(width), np.empty(width), np.empty(width)
+    changed = np.zeros(width, dtype=np.bool_)
+    trial = np.empty(size)
+    kinks = 0
+    release = actuator_release(P, y[n + 2], command) if P.shape[0] else math.inf
+    m = sw(P, y, command, v_set, g0)
+    for i in range(count):
+        ts = t0 + i * h
+        done = 0.0  # time already stepped inside this step
+        splits = 0
+        while True:
+            left = h - done
+            length = left
+            at_release = False
+            until = release - (i * h + done)
+            if EDGE * h < until < left - EDGE * h:
+                length, at_release = until, True
+            nfev += rk_step(f, P, T, ts + done, y, command, v_set, length, K, tmp, y1, rec)
+            sw(P, y1, command, v_set, g1)
+            if m and splits < MAX_SPLITS and _changed(g0, g1, m, changed):
+                tau = length
+                for j in range(m):
+                    if changed[j]:
+                        tj, used = _locate(f, sw, P, T, ts + done, y, command, v_set, length, j, g0[j], g1[j],
+                                           K, tmp, trial, rec, g)
+                        nfev += used
+                        tau = pymin(tau, tj)
+                if EDGE * h < tau < length - EDGE * h:
+                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, tau, K, tmp, y1, rec)
+                    y, y1 = y1, y
+                    sw(P, y, command, v_set, g0)
+                    done += tau
+                    splits += 1
+                    kinks += 1
+                    continue
+            y, y1 = y1, y
+            g0, g1 = g1, g0
+            if at_release:
+                kinks += 1
+                splits += 1
+                done += length
+                continue
+            break
+    return y, nfev, kinks
+
+
+# -- entry points (compiled; ``.py_func`` is the plain-Python path) ----------------------------------
+
+@entry
+def rhs_of(P, y, command, v_set):
+    """y' as a new array (dynamics.Model.rhs)."""
+    dy = np.empty(y.shape[0])
+    rhs(P, y, command, v_set, dy, np.empty((0, REC)))
+    return dy
+
+
+@entry
+def tick(P, T, y0, command, v_set, t0, t1, max_step, split):
+    """One tick of the model from t0 to t1 (``advance`` on ``rhs`` and ``switches``). Returns
+    (y1, clear, right-hand sides evaluated, kinks split at); clear: see ``clear``."""
+    y, nfev, kinks = advance(model_rhs, switches, P, T, y0, command, v_set, t0, t1, max_step, split)
+    return y, clear(P, y), nfev, kinks
+
+
+@entry
+def outputs_of(P, y, command, v_set):
+    """(cart n x OUT, scalars SCALARS) of ``outputs``."""
+    n = int(P[H.n])
+    cart = np.empty((n, OUT))
+    sc = np.empty(SCALARS)
+    outputs(P, y, command, v_set, cart, sc, np.empty(y.shape[0]))
+    return cart, sc
+
+
+@entry
+def margin_of(P, y):
+    """``margin``: (margin, cart index)."""
+    return margin(P, y)
+
+
+@entry
+def switches_of(P, y, command, v_set):
+    """The switching functions at y, as a new array."""
+    g = np.empty(FORCE_SWITCHES + int(P[H.n]) + 1)
+    m = switches(P, y, command, v_set, g)
+    return g[:m].copy()
+
+
+@entry
+def release_of(P, psi1, command):
+    """``actuator_release``."""
+    return actuator_release(P, psi1, command)
+
+
+ENTRIES = (rhs_of, tick, outputs_of, margin_of, switches_of, release_of)

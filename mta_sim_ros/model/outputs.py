@@ -1,0 +1,105 @@
+"""What the simulator reports at one instant, from a state of any fidelity level.
+
+The dynamic and kinematic levels report through the kernel (``kernel.outputs``: one pass, compiled
+where numba runs); ``reference_outputs`` builds the same numbers from the readable reference
+(chain.py, ``dynamics.Model.terms``, geometry.py, guards.py) for the tests to hold the kernel to.
+The slip level reports through its own ``outputs``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import kernel
+from .geometry import cart_points, hitch_angles
+
+
+@dataclass
+class Outputs:
+    """What the simulator reports at one instant (SI units, rad)."""
+
+    t: float  # s
+    front: np.ndarray  # A_k, n x 2
+    axle: np.ndarray  # B_k, n x 2
+    com: np.ndarray  # C_k, n x 2
+    rear_hitch: np.ndarray  # A_{n+1} (the last cart's rear hitch point), 2
+    heading: np.ndarray  # th_k, n
+    hitch_angle: np.ndarray  # th_{k-1} - th_k, n - 1
+    psi: np.ndarray  # psi_k, n (psi_1 = applied steering angle)
+    com_speed: np.ndarray  # s'_Ck, n, m/s
+    axle_speed: np.ndarray  # s'_Bk, n, m/s
+    yaw_rate: np.ndarray  # th'_k, n, rad/s
+    speed: float  # V = s'_A1, m/s
+    steering: float  # psi_1, rad
+    command: float  # steering command held over the last tick, rad
+    speed_setpoint: float  # m/s
+    resistance: np.ndarray  # F_Bk, n, N (> 0 opposes forward motion of B_k)
+    traction: float  # F_A1, N
+    power: float  # N = F_A1 V, W
+    resistance_power: float  # sum F_Bk s'_Bk, W
+    kinetic_energy: float  # T = 1/2 M V^2, J
+    jackknife_margin: float  # rad, see guards.jackknife_margin
+
+
+def evaluate(model, t: float, y, command: float, v_set: float, compiled: bool = True) -> Outputs:
+    """The Outputs of state y under the held input (command, v_set); ``compiled`` = False runs the
+    kernel as plain Python (the same numbers)."""
+    own = getattr(model, "outputs", None)
+    if own is not None:  # a level with its own state layout (slip)
+        return own(t, y, command, v_set)
+    # the kinematic level reports its inverse dynamics: the prescribed-speed law whose V' is the ramp
+    P = getattr(model, "P_outputs", model.P)
+    law_input = model.output_input(y, v_set) if hasattr(model, "output_input") else v_set
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    run = kernel.outputs_of if compiled else kernel.outputs_of.py_func
+    cart, sc = run(P, y, float(command), float(law_input))
+    n = model.layout.n
+    V = float(y[n + 3])
+    traction = float(sc[kernel.TRACTION])
+    return Outputs(
+        t=t, front=cart[:, kernel.AX:kernel.AY + 1], axle=cart[:, kernel.BX:kernel.BY + 1],
+        com=cart[:, kernel.CX:kernel.CY + 1], rear_hitch=sc[kernel.REAR_X:kernel.REAR_Y + 1],
+        heading=y[2:2 + n].copy(), hitch_angle=cart[1:, kernel.PHI], psi=cart[:, kernel.PSI],
+        com_speed=cart[:, kernel.VC], axle_speed=cart[:, kernel.VB], yaw_rate=cart[:, kernel.VT],
+        speed=V, steering=float(y[n + 2]), command=command, speed_setpoint=v_set,
+        resistance=cart[:, kernel.RES], traction=traction, power=traction * V,
+        resistance_power=float(sc[kernel.RES_POWER]), kinetic_energy=0.5 * float(sc[kernel.MASS]) * V * V,
+        jackknife_margin=float(sc[kernel.MARGIN]))
+
+
+def reference_outputs(model, t: float, y: np.ndarray, command: float, v_set: float) -> Outputs:
+    """``evaluate`` for a no-slip level, built from the readable reference path."""
+    from .guards import JACKKNIFE_PSI
+
+    L = model.layout
+    tm = model.terms(y, command, v_set)
+    ch = tm.chain
+    V = float(y[L.speed])
+    heading = y[L.heading]
+    pts = cart_points(model.train, float(y[L.x]), float(y[L.y]), heading)
+    axle_speed = np.array(ch.kapB) * V
+    resistance = np.array(tm.resistance)
+    phis = hitch_angles(heading.tolist())
+    margins = [min(cart.max_hitch_angle - abs(phi), JACKKNIFE_PSI - abs(psi))
+               for cart, phi, psi in zip(model.train.carts[1:], phis, ch.psi[1:])]
+    return Outputs(
+        t=t,
+        front=pts["A"], axle=pts["B"], com=pts["C"], rear_hitch=pts["rear_hitch"],
+        heading=np.array(heading, dtype=float),
+        hitch_angle=np.array(phis),
+        psi=np.array(ch.psi),
+        com_speed=np.array(ch.kapC) * V,
+        axle_speed=axle_speed,
+        yaw_rate=np.array(ch.kapT) * V,
+        speed=V,
+        steering=float(y[L.steering]),
+        command=command,
+        speed_setpoint=v_set,
+        resistance=resistance,
+        traction=tm.traction,
+        power=tm.traction * V,
+        resistance_power=float(np.dot(resistance, axle_speed)),
+        kinetic_energy=0.5 * tm.mass * V * V,
+        jackknife_margin=min(margins, default=float("inf")),
+    )
