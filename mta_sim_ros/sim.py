@@ -17,7 +17,7 @@ import numpy as np
 from .fidelity import Choice, choose, make_model
 from .integrate import IntegrationError, make_stepper
 from .integrate.stability import UnstableStepError, stable_step
-from .integrate.steppers import FixedStep
+from .integrate.steppers import FixedStep, Held
 from .model import jit, kernel
 from .model.dynamics import Model
 from .model.guards import ModelValidityError, check_state, fast_modes
@@ -210,21 +210,13 @@ class Simulation:
             if isinstance(self.stepper, FixedStep):
                 y1 = self.stepper.advance(f, t0, y0, t1)
             else:
-                y1 = self.stepper.tick(f, t0, y0, t1, switch=self._switch(command, v_set),
-                                       release=self._release(y0, command))
+                held = None if self.compiled is None else Held(model.P, command, v_set, self.compiled)
+                y1 = self.stepper.tick(f, t0, y0, t1, release=self._release(y0, command), held=held)
             check_state(model, t1, y1)
         self.y = y1
         self.ticks += 1
         self.command, self.v_set = command, v_set
         return y1
-
-    def _switch(self, command: float, v_set: float):
-        """y -> the force laws' switching functions (kernel.switches), for a model with a kernel."""
-        if self.compiled is None:
-            return None
-        P = self.model.P
-        run = kernel.switches_of if self.compiled else kernel.switches_of.py_func
-        return lambda y: run(P, np.ascontiguousarray(y, dtype=np.float64), float(command), float(v_set))
 
     def _release(self, y, command: float) -> float:
         """When the actuator's rate limit lets go in this tick, from its start (s; inf: it does not)."""

@@ -45,8 +45,8 @@ class IntegrationError(RuntimeError):
 
 
 def _callable_rhs(fun: Fun):
-    """``fun(t, y)`` in the stepping routine's form f(P, t, y, command, v_set, dy, rec)."""
-    def f(P, t, y, command, v_set, dy, rec):
+    """``fun(t, y)`` in the stepping routine's form f(P, t, y, command, v_set, dy, rec, mode)."""
+    def f(P, t, y, command, v_set, dy, rec, mode):
         dy[:] = fun(t, y)
     return f
 
@@ -90,13 +90,34 @@ class FixedStep:
         return y
 
 
+class Held:
+    """A kernel model's right-hand side with its non-smooth laws held on one branch each (see
+    ``model.kernel.rhs``): what an adaptive solver steps between two kinks."""
+
+    def __init__(self, P: np.ndarray, command: float, v_set: float, compiled: bool = True):
+        self.P, self.command, self.v_set = P, float(command), float(v_set)
+        pick = (lambda f: f) if compiled else (lambda f: f.py_func)
+        self._rhs, self._mode, self._switches = pick(kernel.held_rhs_of), pick(kernel.mode_of), pick(kernel.switches_of)
+
+    def rhs(self, mode: np.ndarray) -> Fun:
+        P, c, v, run = self.P, self.command, self.v_set, self._rhs
+        return lambda t, y: run(P, np.ascontiguousarray(y, dtype=np.float64), c, v, mode)
+
+    def mode(self, y: np.ndarray, rate_limited: bool) -> np.ndarray:
+        return self._mode(self.P, np.ascontiguousarray(y, dtype=np.float64), self.command, self.v_set, rate_limited)
+
+    def switches(self, y: np.ndarray) -> np.ndarray:
+        return self._switches(self.P, np.ascontiguousarray(y, dtype=np.float64), self.command, self.v_set)
+
+
 class Adaptive:
     """scipy.integrate's OdeSolver ``method`` with tolerances rtol, atol and step <= max_step.
 
-    ``tick`` splits at kinks: at the actuator's release (closed form), and where a force-law
-    switching function changes sign between two accepted steps it is located on the step (dense
-    output, then refined by re-integrating from the last point before it), the solver is stopped
-    there and restarted, so no accepted step crosses a kink."""
+    ``tick`` splits at kinks: at the actuator's release (closed form) and, for a kernel model
+    (``Held``), where a force-law switching function changes sign: each piece is integrated with
+    the laws held on the branches it starts on (a smooth right-hand side), a sign change after an
+    accepted step is located on the step's dense output, the piece is finished there exactly, and
+    the solver restarts on the new branch. No accepted step crosses a kink."""
 
     def __init__(self, method: str, rtol: float, atol: float, max_step: float = math.inf, split_kinks: bool = True):
         if method not in ADAPTIVE_METHODS:
@@ -118,22 +139,22 @@ class Adaptive:
         return self._solver_class(fun, t0, np.asarray(y0, dtype=float), t1, rtol=self.rtol, atol=self.atol,
                                   max_step=self.max_step, first_step=first)
 
-    def _run(self, solver, switch=None):
-        """Step ``solver`` to its t_bound; with ``switch`` (y -> switching function values), stop
-        at the first step after which one changed sign: (t_before, y_before, t_after) of that step,
+    def _run(self, solver, switches=None, high=None):
+        """Step ``solver`` to its t_bound; with ``switches`` (y -> switching function values) and
+        ``high`` (the held branches: which are > 0), stop after the first step that ends with one
+        on the other side and return (t, y) before that step and the switching values after it;
         else None."""
-        g_before = None if switch is None else switch(solver.y)
         while solver.status == "running":
             t_before, y_before = solver.t, solver.y.copy()
             message = solver.step()
             if solver.status == "failed":
                 self.nfev += solver.nfev
                 raise IntegrationError(f"{self.method} failed at t = {solver.t:.6g} s: {message}")
-            if switch is not None:
-                g_after = switch(solver.y)
-                if np.any((g_before > 0.0) != (g_after > 0.0)):
-                    return t_before, y_before, solver
-                g_before = g_after
+            if switches is not None:
+                g_after = switches(solver.y)
+                if np.any((g_after > 0.0) != high):
+                    self.nfev += solver.nfev
+                    return t_before, y_before, g_after
         # The solver's own proposal for its next step (h_abs), not the last step, which was cut
         # short to land on t1. LSODA keeps no h_abs; its last step serves.
         self._last_step = getattr(solver, "h_abs", None) or solver.step_size
@@ -146,75 +167,58 @@ class Adaptive:
         self._run(solver)
         return solver.y.copy()
 
-    def tick(self, fun: Fun, t0: float, y0: np.ndarray, t1: float, switch=None, release: float = math.inf):
-        """One tick of a model: ``fun`` with the input held, ``switch(y)`` its switching functions
-        (or None), ``release`` the actuator's release time from t0 (s, inf for none)."""
+    def tick(self, fun: Fun, t0: float, y0: np.ndarray, t1: float, release: float = math.inf,
+             held: Held | None = None) -> np.ndarray:
+        """One tick of a model: ``fun`` its right-hand side with the input held, ``release`` the
+        actuator's release time from t0 (s, inf: it is not rate-limited), ``held`` its branches
+        (a kernel model) or None."""
         if not self.split_kinks:
             return self.advance(fun, t0, y0, t1)
-        bounds = [t0, t1]
+        pieces = [(t0, t1, math.isfinite(release))]
         if 1e-12 * (t1 - t0) < release < (1.0 - 1e-12) * (t1 - t0):
-            bounds.insert(1, t0 + release)
+            pieces = [(t0, t0 + release, True), (t0 + release, t1, False)]
             self.kinks += 1
         y = np.asarray(y0, dtype=float)
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            y = self._piece(fun, a, y, b, switch)
+        for a, b, rate_limited in pieces:
+            y = self.advance(fun, a, y, b) if held is None else self._held_piece(held, a, y, b, rate_limited)
         return y
 
-    def _piece(self, fun: Fun, t0: float, y0: np.ndarray, t1: float, switch) -> np.ndarray:
-        """From t0 to t1 (no actuator release inside), stopping and restarting at each switch."""
-        t, y = t0, np.asarray(y0, dtype=float)
-        for _ in range(64):  # at most this many switches in one piece
-            solver = self._solver(fun, t, y, t1)
-            crossed = self._run(solver, switch)
-            if crossed is None:
-                return solver.y.copy()
-            t_before, y_before, stepped = crossed
-            self.nfev += stepped.nfev
-            t, y = self._to_switch(fun, t_before, y_before, stepped, switch)
-            self.kinks += 1
-            if t >= t1 - 1e-12 * (t1 - t0):
-                return y
-        return self.advance(fun, t, y, t1)
-
-    def _to_switch(self, fun: Fun, t_before: float, y_before: np.ndarray, stepped, switch):
-        """(t*, y(t*)) just past the first sign change of a switching function in the step
-        (t_before, stepped.t], integrated from (t_before, y_before) so that no step crosses it."""
+    def _held_piece(self, held: Held, t0: float, y0: np.ndarray, t1: float, rate_limited: bool) -> np.ndarray:
+        """From t0 to t1 on held branches, stopping and switching branch at each sign change."""
         from scipy.optimize import brentq
 
-        g0 = switch(y_before)
-        g1 = switch(stepped.y)
-        dense = stepped.dense_output()
-        j = int(np.argmax((g0 > 0.0) != (g1 > 0.0)))
+        t, y = t0, np.asarray(y0, dtype=float)
+        mode = held.mode(y, rate_limited)
+        for _ in range(64):  # at most this many switches in one piece; then the branches follow the state
+            m = len(held.switches(y))
+            high = mode[1:1 + m] == 1
+            solver = self._solver(held.rhs(mode), t, y, t1)
+            crossed = self._run(solver, held.switches, high)
+            if crossed is None:
+                return solver.y.copy()
+            t_before, y_before, g_after = crossed
+            dense = solver.dense_output()  # the step across the switch, on the held (smooth) branch
+            j = int(np.argmax((g_after > 0.0) != high))
 
-        def along(t):
-            return self._integrate(fun, t_before, y_before, t) if t > t_before else y_before
+            def g_j(s):
+                return float(held.switches(dense(s))[j])
 
-        def g_dense(t):
-            return float(switch(dense(t))[j])
-
-        # first estimate from the dense output (inaccurate across the kink), then refine with
-        # integrations from y_before that stop at the trial time, which cross no kink before t*
-        t_est = brentq(g_dense, t_before, stepped.t, xtol=1e-14, rtol=1e-15) if g_dense(t_before) * g_dense(
-            stepped.t) < 0 else 0.5 * (t_before + stepped.t)
-        lo, hi = t_before, stepped.t
-        far = g1[j] > 0.0
-        f_lo, f_hi = g0[j], g1[j]
-        t = t_est
-        side = 0
-        y_hi = stepped.y.copy()
-        for _ in range(60):
-            if hi - lo <= 4e-16 * max(abs(hi), 1.0):
-                break
-            if not lo < t < hi:
-                t = 0.5 * (lo + hi)
-            y_t = along(t)
-            lo, hi, f_lo, f_hi, side = kernel.illinois_update(lo, hi, f_lo, f_hi, side, t, float(switch(y_t)[j]), far)
-            if hi == t:
-                y_hi = y_t
-            t = kernel.illinois_point(lo, hi, f_lo, f_hi)
-        return hi, y_hi
+            # the switch lies in the step; at its start the value may sit on the far side by rounding
+            t_switch = brentq(g_j, t_before, solver.t, xtol=1e-15, rtol=1e-15) \
+                if (g_j(t_before) > 0.0) == bool(high[j]) else t_before
+            y = self._integrate(held.rhs(mode), t_before, y_before, t_switch)  # exactly to the switch
+            t = t_switch
+            mode = held.mode(y, rate_limited)
+            mode[1 + j] = 1 if g_after[j] > 0.0 else 0  # the far side, whatever the rounding at the switch
+            self.kinks += 1
+            if t >= t1:
+                return y
+        return self.advance(held.rhs(held.mode(y, rate_limited)), t, y, t1)
 
     def _integrate(self, fun: Fun, t0: float, y0: np.ndarray, t1: float) -> np.ndarray:
+        """y' = fun from t0 to t1 with a solver of its own (no step carried over)."""
+        if not t1 > t0:
+            return np.asarray(y0, dtype=float).copy()
         solver = self._solver_class(fun, t0, np.asarray(y0, dtype=float), t1, rtol=self.rtol, atol=self.atol,
                                     max_step=self.max_step)
         while solver.status == "running":

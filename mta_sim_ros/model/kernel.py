@@ -144,23 +144,40 @@ def pymax(a, b):
     return b if b > a else a
 
 
+#: a branch left to the state (natural), or held: LOW where the switching function is <= 0, HIGH > 0
+NATURAL, LOW, HIGH = -1, 0, 1
+
+
 @jitable
-def steering_rate(P, psi1, command):
-    """psi_1' = clip((clip(command, +-max_angle) - psi_1) / tau, +-max_rate) (actuator.py)."""
+def steering_rate(P, psi1, command, branch):
+    """psi_1' = clip((clip(command, +-max_angle) - psi_1) / tau, +-max_rate) (actuator.py); with
+    ``branch`` HIGH the rate limit's side (+-max_rate), LOW the linear side, NATURAL as the state is."""
     max_angle, max_rate = P[H.max_angle], P[H.max_rate]
     target = pymin(pymax(command, -max_angle), max_angle)
-    return pymin(pymax((target - psi1) / P[H.time_constant], -max_rate), max_rate)
+    if branch == NATURAL:
+        return pymin(pymax((target - psi1) / P[H.time_constant], -max_rate), max_rate)
+    if branch == HIGH:
+        return max_rate if target > psi1 else -max_rate
+    return (target - psi1) / P[H.time_constant]
 
 
 @jitable
-def resistance_magnitude(P, rolling, first, count, axle_speed):
+def held_abs(x, branch):
+    """|x|, or with a held branch the side of it (+x for HIGH, -x for LOW)."""
+    if branch == NATURAL:
+        return abs(x)
+    return x if branch == HIGH else -x
+
+
+@jitable
+def resistance_magnitude(P, rolling, first, count, axle_speed, branch):
     """f m g plus the drafts D = F_i (A + B S + C S^2) W T at one axle, S = |speed| in km/h, summed
-    in the order of forces.CartResistance.force."""
+    in the order of forces.CartResistance.force (``branch``: the sign of the speed, see held_abs)."""
     total = rolling
     base = HEAD_SIZE + CART_SIZE * int(P[H.n])
     for i in range(first, first + count):
         d = base + DRAFT_SIZE * i
-        S = abs(axle_speed) * forces.MS_TO_KMH
+        S = held_abs(axle_speed, branch) * forces.MS_TO_KMH
         total += P[d + D.soil_factor] * (P[d + D.A] + P[d + D.B] * S + P[d + D.C] * S * S) * P[d + D.width] \
             * P[d + D.depth]
     return total
@@ -185,9 +202,11 @@ REC = 5
 
 
 @jitable
-def rhs(P, y, command, v_set, dy, rec):
+def rhs(P, y, command, v_set, dy, rec, mode):
     """y' into ``dy``; returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's
-    kapT, kapB, kapC, psi and resistance F_Bk go into its first REC columns.
+    kapT, kapB, kapC, psi and resistance F_Bk go into its first REC columns. ``mode`` (empty, or
+    one branch per switch: ``branches``) holds each non-smooth law on one of its branches, as a
+    step between two kinks needs (outside its own region a held branch is the smooth extension).
 
     The chain (chain.py): walking back from the tractor, V_k = kap_k V and psi_k give
     th'_k = kap_k sin(psi_k) V / l_k, s'_Bk = kap_k cos(psi_k) V, s'_Ck = kap_k rc_k V; each rate
@@ -196,8 +215,10 @@ def rhs(P, y, command, v_set, dy, rec):
     n = int(P[H.n])
     law = int(P[H.law])
     forces_on = law != KINEMATIC
+    held = mode.shape[0] > 0
+    i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P)
     psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
-    psi_rate = steering_rate(P, psi1, command)
+    psi_rate = steering_rate(P, psi1, command, mode[0] if held else NATURAL)
     v0 = P[H.smoothing_speed]
 
     mass = 0.0
@@ -230,8 +251,13 @@ def rhs(P, y, command, v_set, dy, rec):
             mass += m * kc_val * kc_val + J * t_val * t_val
             mass_rate += 2.0 * (m * kc_val * kc_dot + J * t_val * t_dot)
             axle_speed = b_val * V
-            magnitude = resistance_magnitude(P, P[b + C.rolling], int(P[b + C.draft_first]),
-                                             int(P[b + C.draft_count]), axle_speed)
+            count = int(P[b + C.draft_count])
+            branch = NATURAL
+            if held and i_speed >= 0 and count > 0:
+                branch = mode[1 + i_speed]
+                i_speed += 1
+            magnitude = resistance_magnitude(P, P[b + C.rolling], int(P[b + C.draft_first]), count, axle_speed,
+                                             branch)
             resistance = magnitude * math.tanh(axle_speed / v0)
             generalized_resistance += resistance * b_val
             if rec.shape[0]:
@@ -258,14 +284,15 @@ def rhs(P, y, command, v_set, dy, rec):
         velocity_term = 0.5 * mass_rate * V
         if law == PRESCRIBED:  # forces.prescribed_acceleration, then inverse dynamics
             a = (v_set - V) / P[H.response_time]
-            acceleration = pymin(pymax(a, -P[H.max_accel]), P[H.max_accel])
+            acceleration = clip_held(a, P[H.max_accel], mode[1 + i_accel] if held and i_accel >= 0 else NATURAL)
             traction = mass * acceleration + generalized_resistance + velocity_term
         else:
             if law == GOVERNOR:  # forces.governor
                 error = v_set - V
                 u = P[H.kp] * error + z
-                limit = traction_limit(P, V)
-                traction = pymin(pymax(u, -limit), limit)
+                limit = traction_limit(P, V, mode[1 + i_limit] if held and i_limit >= 0 else NATURAL,
+                                       mode[1 + i_floor] if held and i_floor >= 0 else NATURAL)
+                traction = clip_held(u, limit, mode[1 + i_sat] if held and i_sat >= 0 else NATURAL)
                 governor_rate = P[H.ki] * error + (traction - u) / P[H.windup_time]
             else:
                 traction = P[H.force]
@@ -280,11 +307,30 @@ def rhs(P, y, command, v_set, dy, rec):
 
 
 @jitable
-def traction_limit(P, V):
-    """Largest |F_A1| at speed V: adhesion, and engine power over speed (forces.traction_limit)."""
+def clip_held(x, limit, branch):
+    """x clipped to +-limit (Python's min(max(x, -limit), limit)); with a held branch, x itself (LOW)
+    or the limit on x's side (HIGH)."""
+    if branch == NATURAL:
+        return pymin(pymax(x, -limit), limit)
+    if branch == LOW:
+        return x
+    return limit if x > 0.0 else -limit
+
+
+@jitable
+def traction_limit(P, V, limit_branch, floor_branch):
+    """Largest |F_A1| at speed V: adhesion, and engine power over speed (forces.traction_limit),
+    min(max_force, max_power / max(|V|, 0.1)); held branches: the power limit (HIGH) or the force
+    limit (LOW) of the min, |V| (HIGH) or 0.1 (LOW) of the max."""
     if math.isinf(P[H.max_power]):
         return P[H.max_force]
-    return pymin(P[H.max_force], P[H.max_power] / pymax(abs(V), 0.1))
+    if floor_branch == NATURAL:
+        speed = pymax(abs(V), 0.1)
+    else:
+        speed = abs(V) if floor_branch == HIGH else 0.1
+    if limit_branch == NATURAL:
+        return pymin(P[H.max_force], P[H.max_power] / speed)
+    return P[H.max_power] / speed if limit_branch == HIGH else P[H.max_force]
 
 
 @jitable
@@ -332,7 +378,7 @@ def outputs(P, y, command, v_set, cart, sc, dy):
     """Every reported quantity of state y into ``cart`` (n x OUT) and ``sc`` (SCALARS): the points
     of geometry.cart_points, the chain's factors times V, the forces, and the jackknife margin."""
     n = int(P[H.n])
-    traction, mass = rhs(P, y, command, v_set, dy, cart)
+    traction, mass = rhs(P, y, command, v_set, dy, cart, no_mode())
     V = y[n + 3]
     ax, ay = y[0], y[1]
     res_power = 0.0
@@ -368,33 +414,51 @@ FORCE_SWITCHES = 3
 
 
 @jitable
+def switch_layout(P):
+    """Where each switching function sits in ``switches``'s list (-1: not in this model):
+    (governor saturation, governor force/power limit, governor speed floor, prescribed-speed
+    acceleration limit, first draft speed sign)."""
+    law = int(P[H.law])
+    m = 0
+    i_sat = i_limit = i_floor = i_accel = i_speed = -1
+    if law == GOVERNOR:
+        force_finite, power_finite = not math.isinf(P[H.max_force]), not math.isinf(P[H.max_power])
+        if force_finite or power_finite:
+            i_sat, m = m, m + 1
+        if power_finite:
+            if force_finite:
+                i_limit, m = m, m + 1
+            i_floor, m = m, m + 1
+    elif law == PRESCRIBED and not math.isinf(P[H.max_accel]):
+        i_accel, m = m, m + 1
+    if P[H.speed_switches] != 0.0 and law != KINEMATIC:
+        i_speed = m
+    return i_sat, i_limit, i_floor, i_accel, i_speed
+
+
+@jitable
 def switches(P, y, command, v_set, g):
     """The force laws' switching functions at y into g; returns how many. Each is continuous and
     changes sign exactly where a law changes branch (a kink of y'):
         governor          |u| - limit(V) (the force limit engages), max_force max(|V|, 0.1) - max_power
-                          (adhesion against power limit), |V| - 0.1 (the power limit's speed floor)
+                          (the power limit is below the adhesion limit), |V| - 0.1 (the power
+                          limit's speed floor)
         prescribed speed  |v_set - V| / response_time - max_accel (the acceleration limit)
-        drafts with B     s'_Bk of each such cart (|S| has a corner at 0)
+        drafts with B     s'_Bk of each cart with drafts (|S| has a corner at 0)
     The actuator's rate limit is handled in closed form (``actuator_release``)."""
     n = int(P[H.n])
-    law = int(P[H.law])
     V, z = y[n + 3], y[n + 4]
-    m = 0
-    if law == GOVERNOR:
-        u = P[H.kp] * (v_set - V) + z
-        if not (math.isinf(P[H.max_force]) and math.isinf(P[H.max_power])):
-            g[m] = abs(u) - traction_limit(P, V)
-            m += 1
-        if not math.isinf(P[H.max_power]):
-            if not math.isinf(P[H.max_force]):
-                g[m] = P[H.max_force] * pymax(abs(V), 0.1) - P[H.max_power]
-                m += 1
-            g[m] = abs(V) - 0.1
-            m += 1
-    elif law == PRESCRIBED and not math.isinf(P[H.max_accel]):
-        g[m] = abs(v_set - V) / P[H.response_time] - P[H.max_accel]
-        m += 1
-    if P[H.speed_switches] != 0.0 and law != KINEMATIC:
+    i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P)
+    if i_sat >= 0:
+        g[i_sat] = abs(P[H.kp] * (v_set - V) + z) - traction_limit(P, V, NATURAL, NATURAL)
+    if i_limit >= 0:
+        g[i_limit] = P[H.max_force] * pymax(abs(V), 0.1) - P[H.max_power]
+    if i_floor >= 0:
+        g[i_floor] = abs(V) - 0.1
+    if i_accel >= 0:
+        g[i_accel] = abs(v_set - V) / P[H.response_time] - P[H.max_accel]
+    m = max(i_sat, i_limit, i_floor, i_accel) + 1
+    if i_speed >= 0:
         k_val = 1.0
         p_val = y[n + 2]
         for k in range(n):
@@ -404,10 +468,16 @@ def switches(P, y, command, v_set, g):
                 g[m] = k_val * c * V  # s'_Bk
                 m += 1
             if k < n - 1:
-                lam = P[b + C.lam]
                 k_val = k_val * math.sqrt(c * c + P[b + C.lam2] * s * s)
-                p_val = y[2 + k] - y[3 + k] - math.atan2(lam * s, c)
+                p_val = y[2 + k] - y[3 + k] - math.atan2(P[b + C.lam] * s, c)
     return m
+
+
+@jitable
+def branches(g, m, mode):
+    """mode[1 + j] = the branch switching function j is on (HIGH where g_j > 0, else LOW)."""
+    for j in range(m):
+        mode[1 + j] = HIGH if g[j] > 0.0 else LOW
 
 
 @jitable
@@ -429,16 +499,22 @@ def no_switches(P, y, command, v_set, g):
     return 0
 
 
+@jitable
+def no_mode():
+    """No branch held: every law as the state is."""
+    return np.empty(0, dtype=np.int64)
+
+
 # -- explicit Runge-Kutta, any tableau ----------------------------------------------------------------
 
 @jitable
-def model_rhs(P, t, y, command, v_set, dy, rec):
+def model_rhs(P, t, y, command, v_set, dy, rec, mode):
     """The stepping routine's form of ``rhs`` (t does not enter: the input is held)."""
-    rhs(P, y, command, v_set, dy, rec)
+    rhs(P, y, command, v_set, dy, rec, mode)
 
 
 @jitable
-def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec):
+def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode):
     """One step of length h of the explicit tableau T from y into ``out``; returns the stages.
 
     T (``integrate.tableau.Tableau.packed``) holds the tableau as the classic methods are
@@ -449,7 +525,7 @@ def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec):
     last bit."""
     stages = T.shape[0] - 2
     size = y.shape[0]
-    f(P, t, y, command, v_set, K[0], rec)
+    f(P, t, y, command, v_set, K[0], rec, mode)
     for i in range(1, stages + 1):
         scale = h / T[i, 0]
         for m in range(size):
@@ -467,7 +543,7 @@ def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec):
             else:
                 out[m] = value
         if i < stages:
-            f(P, t + T[stages + 1, 1 + i] * h, tmp, command, v_set, K[i], rec)
+            f(P, t + T[stages + 1, 1 + i] * h, tmp, command, v_set, K[i], rec, mode)
     return stages
 
 
@@ -511,10 +587,10 @@ def illinois_update(lo, hi, f_lo, f_hi, side, tau, f_tau, far):
 
 
 @jitable
-def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, rec, g):
+def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, rec, mode, g):
     """The step length in (0, h] at which switching function j changes sign along this method's
-    step from y (the Illinois method on tau -> g_j(step(y, tau))). Returns (tau on the far side
-    of the switch, right-hand sides evaluated)."""
+    step from y with the branches ``mode`` held (the Illinois method on tau -> g_j(step(y, tau))).
+    Returns (tau on the far side of the switch, right-hand sides evaluated)."""
     lo, hi = 0.0, h
     f_lo, f_hi = g_lo, g_hi
     far = f_hi > 0.0
@@ -524,7 +600,7 @@ def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, 
         if hi - lo <= 4e-16 * h + 1e-300:
             break
         tau = illinois_point(lo, hi, f_lo, f_hi)
-        nfev += rk_step(f, P, T, t, y, command, v_set, tau, K, tmp, trial, rec)
+        nfev += rk_step(f, P, T, t, y, command, v_set, tau, K, tmp, trial, rec, mode)
         sw(P, trial, command, v_set, g)
         lo, hi, f_lo, f_hi, side = illinois_update(lo, hi, f_lo, f_hi, side, tau, g[j], far)
     return hi, nfev
@@ -533,10 +609,15 @@ def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, 
 @jitable
 def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     """Integrate from t0 to t1 with the input held: ceil((t1 - t0) / max_step) equal steps of the
-    tableau T. With ``split``, a step that holds a kink is cut there and finished from it: at the
-    actuator's release (closed form, ``actuator_release``) and where a switching function
-    (``sw``) changes sign (located along the step, ``_locate``), so the method keeps its order on
-    each smooth piece. Returns (y1, right-hand sides evaluated, kinks split at)."""
+    tableau T. Returns (y1, right-hand sides evaluated, kinks split at).
+
+    With ``split``, each step runs on one branch of every non-smooth law (``mode``: the branch at
+    the step's start, held for all its stages), and a step that holds a kink is cut there and
+    finished from it on the new branch: at the actuator's release (closed form,
+    ``actuator_release``) and where a switching function (``sw``) changes sign (located along the
+    held-branch step, ``_locate``). Each piece then integrates a smooth right-hand side, and the
+    method keeps its order. Without ``split`` every law follows the state (the kinks are
+    stepped across)."""
     size = y0.shape[0]
     K = np.empty((T.shape[0] - 2, size))
     tmp = np.empty(size)
@@ -547,18 +628,22 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     h = (t1 - t0) / count
     nfev = 0
     if not split:
+        natural = no_mode()
         for i in range(count):
-            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec)
+            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec, natural)
             y, y1 = y1, y
         return y, nfev, 0
     n = int(P[H.n]) if P.shape[0] else 0
     width = FORCE_SWITCHES + n + 1
     g0, g1, g = np.empty(width), np.empty(width), np.empty(width)
     changed = np.zeros(width, dtype=np.bool_)
+    mode = np.full(1 + width, NATURAL, dtype=np.int64)
     trial = np.empty(size)
     kinks = 0
     release = actuator_release(P, y[n + 2], command) if P.shape[0] else math.inf
+    released = not EDGE * h < release < math.inf  # not rate-limited, or letting go at the start
     m = sw(P, y, command, v_set, g0)
+    branches(g0, m, mode)
     for i in range(count):
         ts = t0 + i * h
         done = 0.0  # time already stepped inside this step
@@ -567,30 +652,37 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
             left = h - done
             length = left
             at_release = False
-            until = release - (i * h + done)
-            if EDGE * h < until < left - EDGE * h:
-                length, at_release = until, True
-            nfev += rk_step(f, P, T, ts + done, y, command, v_set, length, K, tmp, y1, rec)
+            if not released:
+                until = release - (i * h + done)
+                if until <= EDGE * h:
+                    released = True
+                elif until < left - EDGE * h:
+                    length, at_release = until, True
+            mode[0] = LOW if released else HIGH
+            nfev += rk_step(f, P, T, ts + done, y, command, v_set, length, K, tmp, y1, rec, mode)
             sw(P, y1, command, v_set, g1)
             if m and splits < MAX_SPLITS and _changed(g0, g1, m, changed):
                 tau = length
                 for j in range(m):
                     if changed[j]:
                         tj, used = _locate(f, sw, P, T, ts + done, y, command, v_set, length, j, g0[j], g1[j],
-                                           K, tmp, trial, rec, g)
+                                           K, tmp, trial, rec, mode, g)
                         nfev += used
                         tau = pymin(tau, tj)
                 if EDGE * h < tau < length - EDGE * h:
-                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, tau, K, tmp, y1, rec)
+                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, tau, K, tmp, y1, rec, mode)
                     y, y1 = y1, y
                     sw(P, y, command, v_set, g0)
+                    branches(g0, m, mode)
                     done += tau
                     splits += 1
                     kinks += 1
                     continue
             y, y1 = y1, y
             g0, g1 = g1, g0
+            branches(g0, m, mode)
             if at_release:
+                released = True
                 kinks += 1
                 splits += 1
                 done += length
@@ -605,8 +697,27 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
 def rhs_of(P, y, command, v_set):
     """y' as a new array (dynamics.Model.rhs)."""
     dy = np.empty(y.shape[0])
-    rhs(P, y, command, v_set, dy, np.empty((0, REC)))
+    rhs(P, y, command, v_set, dy, np.empty((0, REC)), no_mode())
     return dy
+
+
+@entry
+def held_rhs_of(P, y, command, v_set, mode):
+    """y' with the branches ``mode`` held (see ``rhs``, ``mode_of``)."""
+    dy = np.empty(y.shape[0])
+    rhs(P, y, command, v_set, dy, np.empty((0, REC)), mode)
+    return dy
+
+
+@entry
+def mode_of(P, y, command, v_set, rate_limited):
+    """The branches of every law at y: the actuator's (HIGH while ``rate_limited``), then each
+    switching function's (``branches``)."""
+    g = np.empty(FORCE_SWITCHES + int(P[H.n]) + 1)
+    mode = np.full(g.shape[0] + 1, NATURAL, dtype=np.int64)
+    branches(g, switches(P, y, command, v_set, g), mode)
+    mode[0] = HIGH if rate_limited else LOW
+    return mode
 
 
 @entry
