@@ -28,7 +28,7 @@ import numpy as np
 
 from ..model import kernel
 from ..model.spec import INTEGRATOR_METHODS
-from .tableau import TABLEAUX
+from .tableau import TABLEAUX, Tableau
 
 Fun = Callable[[float, np.ndarray], np.ndarray]
 
@@ -52,16 +52,19 @@ def _callable_rhs(fun: Fun):
 
 
 class FixedStep:
-    """A fixed-step explicit Runge-Kutta method given by its tableau. The tick is split into
-    ceil(tick / step) equal steps no longer than ``step``."""
+    """A fixed-step explicit Runge-Kutta method given by its tableau (a name of ``TABLEAUX``, or a
+    ``Tableau``). The tick is split into ceil(tick / step) equal steps no longer than ``step``."""
 
-    def __init__(self, method: str, step: float, split_kinks: bool = True):
-        if method not in TABLEAUX:
+    def __init__(self, method: str | Tableau, step: float, split_kinks: bool = True):
+        if isinstance(method, Tableau):
+            self.tableau = method
+        elif method in TABLEAUX:
+            self.tableau = TABLEAUX[method]
+        else:
             raise ValueError(f"method: {method!r} is not one of {FIXED_METHODS}")
         if not step > 0.0:
             raise ValueError(f"step: {step} must be > 0")
-        self.method = method
-        self.tableau = TABLEAUX[method]
+        self.method = self.tableau.name
         self.step = float(step)
         self.split_kinks = split_kinks
         self._T = self.tableau.packed

@@ -1,0 +1,192 @@
+"""Kinks: where the right-hand side is not smooth, the steppers split the step (integrate/steppers.py,
+model/kernel.py ``advance``), and each method keeps its order.
+
+- The actuator's release time in closed form is where the actuator law (actuator.py) leaves its
+  rate limit; each switching function changes sign exactly where its force law (forces.py)
+  changes branch; a held branch equals the law where the law is on it.
+- On kinks.yaml (a light tractor, a heavy cart, steering steps whose rate limit lets go inside a
+  step, speed steps that drive the governor through its force and power limits), against a DOP853
+  reference at rtol = atol = 1e-12 that also splits: every fixed method's error falls with its
+  order when splitting and not when stepping across; the default (rk4, 0.01 s) is within 1e-6 m;
+  the adaptive methods' error control no longer accepts steps across a kink.
+- Where no kink is met, splitting changes nothing, to the last bit.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mta_sim_ros.integrate.tableau import TABLEAUX
+from mta_sim_ros.model import forces, kernel
+from mta_sim_ros.model.actuator import steering_rate
+from mta_sim_ros.model.dynamics import Model
+from mta_sim_ros.model.loader import load_scene
+from mta_sim_ros.sim import Simulation
+
+import trains
+
+REPO = Path(__file__).resolve().parents[1]
+TARGET = 1e-6  # m, the default method against the reference (the issue's target)
+
+
+def kinks_scene(duration=12.0):
+    return dataclasses.replace(load_scene(REPO / "config" / "scenes" / "kinks.yaml"), duration=duration)
+
+
+def with_tolerance(scene, tol):
+    return dataclasses.replace(scene, integrator=dataclasses.replace(scene.integrator, rtol=tol, atol=tol))
+
+
+def hitch_points(scene, **options):
+    """A_k of every cart and the last rear hitch, after every tick of the scene's held inputs."""
+    sim = Simulation(scene, fidelity="dynamic", **options)
+    points = []
+    for _ in range(int(math.floor(scene.duration / sim.tick + 1e-9))):
+        sim.advance(*sim.scheduled_inputs(sim.t))
+        out = sim.outputs()
+        points.append(np.vstack([out.front, out.rear_hitch[None]]))
+    return np.array(points), sim
+
+
+def distance(a, b) -> float:
+    return float(np.max(np.linalg.norm(a - b, axis=2)))
+
+
+@pytest.fixture(scope="module")
+def reference():
+    points, sim = hitch_points(with_tolerance(kinks_scene(), 1e-12), method="DOP853", split_kinks=True)
+    # the scene does what it says: inside ticks, the rate limit lets go after each of the 3 steering
+    # steps, and the governor meets or leaves a limit 4 times (force limit, power limit, and back)
+    assert sim.kinks >= 3 + 4, sim.kinks
+    return points
+
+
+# -- the pieces against the laws ----------------------------------------------------------------------
+
+def test_actuator_release_is_where_the_rate_limit_lets_go():
+    act = trains.train(2).actuator
+    P = kernel.pack(trains.train(2))
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        psi0, command = rng.uniform(-0.8, 0.8, 2)
+        t = kernel.release_of.py_func(P, psi0, command)
+        target = min(max(command, -act.max_angle), act.max_angle)
+        if not math.isfinite(t):  # never limited: the law is linear from the start
+            assert abs(steering_rate(act, psi0, command)) <= act.max_rate
+            continue
+        sign = math.copysign(1.0, target - psi0)
+        # in the limited phase psi_1 moves at max_rate exactly
+        assert steering_rate(act, psi0 + sign * act.max_rate * t * (1 - 1e-9), command) == sign * act.max_rate
+        assert abs(steering_rate(act, psi0 + sign * act.max_rate * t * (1 + 1e-6) + 1e-12, command)) < act.max_rate
+
+
+LAWS = {
+    "governor": trains.GOVERNOR,
+    "governor, force limit only": trains.Traction("governor", set_speed=3.0, max_force=60000.0, kp=60000.0, ki=3e4),
+    "prescribed, accel limit": trains.Traction("prescribed_speed", set_speed=2.0, response_time=0.3, max_accel=0.4),
+}
+
+
+@pytest.mark.parametrize("law", list(LAWS))
+def test_switching_functions_change_sign_where_the_law_changes_branch(law):
+    tr = trains.train(3, LAWS[law])
+    model = Model(tr)
+    rng = np.random.default_rng(len(law))
+    i_sat, i_limit, i_floor, i_accel, i_speed = kernel.switch_layout(model.P)
+    for _ in range(300):
+        y = trains.random_state(model, rng, slow=True)
+        v_set = rng.uniform(-1, 5)
+        g = kernel.switches_of.py_func(model.P, y, 0.1, v_set)
+        V, z = y[model.layout.speed], y[model.layout.governor]
+        if tr.traction.law == "governor":
+            force, _ = forces.governor(tr.traction, V, v_set, z)
+            u = tr.traction.kp * (v_set - V) + z
+            assert (g[i_sat] > 0) == (force != u)  # saturated: the force is the limit, not u
+            limit = forces.traction_limit(tr.traction, V)
+            if i_limit >= 0:
+                assert (g[i_limit] > 0) == (limit < tr.traction.max_force)
+            if i_floor >= 0:
+                assert (g[i_floor] > 0) == (abs(V) > 0.1)
+        else:
+            a = forces.prescribed_acceleration(tr.traction, V, v_set)
+            assert (g[i_accel] > 0) == (a != (v_set - V) / tr.traction.response_time)
+        # the draft grows with speed (B != 0): the sign of each such cart's axle speed is a switch
+        speeds = model.terms(y, 0.1, v_set).chain.kapB
+        assert g[i_speed:].tolist() == [speeds[-1] * V]  # the only cart with a draft here
+
+
+@pytest.mark.parametrize("law", list(LAWS))
+def test_held_branches_are_the_law_where_it_is_on_them(law):
+    """Held on the branches the state is on, the right-hand side is the law's, to the last bit;
+    held on the other branch it is the smooth extension of that branch (governor: the limit, or u)."""
+    model = Model(trains.train(3, LAWS[law]))
+    rng = np.random.default_rng(7)
+    for _ in range(100):
+        y = trains.random_state(model, rng, slow=True)
+        command, v_set = rng.uniform(-0.8, 0.8), rng.uniform(-1, 5)
+        limited = abs(steering_rate(model.train.actuator, y[model.layout.steering], command)) == model.train.actuator.max_rate
+        mode = kernel.mode_of.py_func(model.P, y, command, v_set, limited)
+        np.testing.assert_array_equal(kernel.held_rhs_of.py_func(model.P, y, command, v_set, mode),
+                                      kernel.rhs_of.py_func(model.P, y, command, v_set))
+
+
+def test_a_held_governor_branch_is_the_smooth_extension():
+    tr = trains.train(3, trains.GOVERNOR)
+    model = Model(tr)
+    y = trains.random_state(model, np.random.default_rng(1))
+    y[model.layout.speed], y[model.layout.governor] = 3.0, 1e3  # far from saturation
+    y[model.layout.steering] = 0.0  # the actuator at rest on its linear branch
+    mode = kernel.mode_of.py_func(model.P, y, 0.0, 3.0, False)
+    i_sat = kernel.switch_layout(model.P)[0]
+    assert mode[1 + i_sat] == kernel.LOW
+    mode[1 + i_sat] = kernel.HIGH  # held saturated: F_A1 = +limit although u is far below it
+    held, natural = (kernel.held_rhs_of.py_func(model.P, y, 0.0, 3.0, mode), kernel.rhs_of.py_func(model.P, y, 0.0, 3.0))
+    mass = model.terms(y, 0.0, 3.0).mass
+    limit = forces.traction_limit(tr.traction, 3.0)
+    assert (held - natural)[model.layout.speed] == pytest.approx((limit - 1e3) / mass, rel=1e-12)
+
+
+# -- the kink test: every method, before and after ----------------------------------------------------
+
+@pytest.mark.parametrize("method", list(TABLEAUX))
+def test_every_fixed_method_keeps_its_order_across_kinks(method, reference):
+    order = TABLEAUX[method].order
+    split = [distance(hitch_points(kinks_scene(), method=method, step=h)[0], reference) for h in (0.01, 0.005)]
+    across = distance(hitch_points(kinks_scene(), method=method, split_kinks=False)[0], reference)
+    assert math.log2(split[0] / split[1]) == pytest.approx(order, abs=0.25), split
+    assert split[0] <= across * 1.01  # never worse; for order >= 3, by more than an order of magnitude
+    if order >= 3:
+        assert split[0] < across / 20, (split[0], across)
+
+
+def test_stepping_across_the_kinks_loses_rk4_its_order(reference):
+    errors = [distance(hitch_points(kinks_scene(), method="rk4", step=h, split_kinks=False)[0], reference)
+              for h in (0.01, 0.005)]
+    assert math.log2(errors[0] / errors[1]) < 3.0, errors
+
+
+def test_the_default_method_meets_the_target_on_the_kinks_scene(reference):
+    points, sim = hitch_points(kinks_scene())
+    assert sim.method == "rk4" and sim.step == 0.01 and sim.split_kinks
+    assert distance(points, reference) < TARGET
+
+
+@pytest.mark.parametrize("method", ["RK45", "DOP853"])
+def test_adaptive_error_control_no_longer_accepts_a_step_across_a_kink(method, reference):
+    scene = with_tolerance(kinks_scene(), 1e-8)
+    split = distance(hitch_points(scene, method=method)[0], reference)
+    across = distance(hitch_points(scene, method=method, split_kinks=False)[0], reference)
+    assert split < across / 100 and split < 1e-9, (split, across)
+
+
+def test_without_kinks_splitting_changes_nothing_to_the_last_bit():
+    """slalom.yaml: the governor never saturates and the rate limit never engages."""
+    scene = dataclasses.replace(load_scene(REPO / "config" / "scenes" / "slalom.yaml"), duration=20.0)
+    a, sim_a = hitch_points(scene, split_kinks=True)
+    b, sim_b = hitch_points(scene, split_kinks=False)
+    assert sim_a.kinks == 0
+    np.testing.assert_array_equal(a, b)
