@@ -22,7 +22,6 @@ import signal
 import sys
 import time
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import rclpy
@@ -39,85 +38,18 @@ from std_srvs.srv import SetBool, Trigger
 
 from . import __version__, ros_msgs
 from .commands import CommandInput, command_ranges
-from .integrate import METHODS, IntegrationError
+from .config import resolve_config_path
+from .integrate import IntegrationError
 from .model.guards import ModelValidityError
 from .model.loader import SpecError, load_scene
+from .params import PARAMS, ConfigError, Param, check_config, check_value
 from .recorder import RunRecorder
 from .sim import Simulation
 from .timing import TickStats, reserve_cpu
-from .topics import TOPICS, WATCHDOG_TOPIC, WATCHDOG_TYPE, qualified
+from .topics import BAG_TOPICS, DIAGNOSTICS_TYPE, MARKERS_TYPE, TOPICS, WATCHDOG_TOPIC, qualified
 
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.VOLATILE)
-
-
-
-def config_dir() -> Path:
-    """The package's config folder: share/mta_sim_ros/config when installed by colcon, else the
-    source tree's config/ (pip install -e, or running from a checkout)."""
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
-        share = Path(get_package_share_directory("mta_sim_ros")) / "config"
-        if share.is_dir():
-            return share
-    except (ImportError, PackageNotFoundError, ValueError, OSError):  # OSError: no AMENT_PREFIX_PATH (a pip venv)
-        pass
-    return Path(__file__).resolve().parent.parent / "config"
-
-
-def resolve_config_path(path: str) -> str:
-    """A relative path as given if it exists from the working directory, else inside config_dir()
-    (so 'scenes/headland_turn.yaml' works from anywhere)."""
-    p = Path(path)
-    if p.is_absolute() or p.exists():
-        return str(p)
-    for base in (config_dir(), config_dir().parent):
-        if (base / p).exists():
-            return str(base / p)
-    return str(p)
-
-
-@dataclass(frozen=True)
-class Param:
-    name: str
-    default: object
-    description: str
-    live: bool  # may change while running
-    low: float | None = None
-    high: float | None = None
-    choices: tuple = ()
-
-
-PARAMS = (
-    Param("scene_file", "scenes/headland_turn.yaml",
-          "scene YAML: the train, its start pose and the integrator (its steering table is not used: "
-          "the node is steered over steering_angle)", live=False),
-    Param("integrator_method", "", f"integrator, '' = the scene's; one of {', '.join(METHODS)}", live=False,
-          choices=("",) + METHODS),
-    Param("integrator_step", 0.0, "integrator step, s; 0 = the scene's", live=False, low=0.0, high=1.0),
-    Param("publish_rate", 100.0, "ticks (and publications) per second of simulated time, Hz", live=False,
-          low=1.0, high=1000.0),
-    Param("real_time_factor", 1.0, "simulated seconds per wall second; 0 = as fast as possible", live=True,
-          low=0.0, high=1000.0),
-    Param("watchdog_timeout", 1.0, "a steering command older than this (wall s) is stale; 0 = never", live=True,
-          low=0.0, high=3600.0),
-    Param("watchdog_action", "hold", "on a stale command: 'hold' the last one or steer 'straight'", live=True,
-          choices=("hold", "straight")),
-    Param("frame_id", "map", "frame of hitch_poses and markers", live=True),
-    Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
-    Param("record", True, "write every run to an MCAP bag", live=False),
-    Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),
-    Param("tick_cpu", -1, "CPU for the tick's thread alone (the node's other threads move off it; start "
-          "other processes elsewhere for a reserved core); -1 = no pinning", live=False, low=-1, high=4095),
-    Param("fidelity", "", "model level: '' = the scene's (auto: the cheapest meeting its needs), or auto, "
-          "kinematic, dynamic, slip; a change applies at the next reset", live=True,
-          choices=("", "auto", "kinematic", "dynamic", "slip")),
-)
-
-
-class ConfigError(ValueError):
-    """Invalid node configuration: one clear message, the node does not start."""
 
 
 def descriptor(p: Param) -> ParameterDescriptor:
@@ -183,10 +115,9 @@ class SimNode(Node):
         self.recorder = None
         self.logged_bag_error = ""
         if self.cfg["record"]:
-            local = {**TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE, WATCHDOG_TOPIC: WATCHDOG_TYPE}
-            in_bag = {t: qualified(t, self.get_namespace()) for t in local}  # e.g. hitch_poses -> /unit1/hitch_poses
+            in_bag = {t: qualified(t, self.get_namespace()) for t in BAG_TOPICS}  # e.g. hitch_poses -> /unit1/hitch_poses
             # background: the MCAP writing runs on a thread of its own, off the tick (recorder.py)
-            self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in local.items()},
+            self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in BAG_TOPICS.items()},
                                         self._run_metadata(), background=True, rename=in_bag)
             self._start_bag()
 
@@ -330,9 +261,9 @@ class SimNode(Node):
                 return SetParametersResult(successful=False,
                                            reason=f"{param.name} cannot change while running: it is fixed at "
                                                   f"start (restart the node with the new value)")
-            if spec.choices and param.value not in spec.choices:
-                return SetParametersResult(successful=False,
-                                           reason=f"{param.name}: {param.value!r} must be one of {spec.choices}")
+            problem = check_value(spec, param.value)
+            if problem:
+                return SetParametersResult(successful=False, reason=f"{param.name}: {problem}")
             if param.name == "fidelity":
                 try:
                     Simulation(self.scene, rate=self.cfg["publish_rate"], fidelity=param.value or None)
@@ -447,22 +378,6 @@ class SimNode(Node):
                 f"thread CPU p99.9 {self.cpu_stats.percentile(99.9) * 1e3:.3f} ms")
         if self.recorder is not None:
             self.recorder.close(self.run_figures())
-
-
-MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
-DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
-
-
-def check_config(cfg: dict) -> None:
-    for p in PARAMS:
-        v = cfg[p.name]
-        if p.choices and v not in p.choices:
-            raise ConfigError(f"parameter {p.name}: {v!r} must be one of {', '.join(map(repr, p.choices))}")
-        if p.low is not None and not p.low <= v <= p.high:
-            raise ConfigError(f"parameter {p.name}: {v} must be in [{p.low:g}, {p.high:g}]")
-    if cfg["integrator_step"] and cfg["integrator_step"] > 1.0 / cfg["publish_rate"]:
-        raise ConfigError(f"parameter integrator_step: {cfg['integrator_step']} must not exceed the tick "
-                          f"1 / publish_rate = {1.0 / cfg['publish_rate']:g} s")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -79,7 +79,7 @@ def log(msg: str) -> None:
 
 def default_train():
     from ..model.loader import load_train
-    from ..node import config_dir
+    from ..config import config_dir
 
     return load_train(config_dir() / "trains" / "default.yaml")
 
@@ -149,10 +149,9 @@ class Ticker:
         from std_msgs.msg import Float64
 
         from .. import ros_msgs
-        from ..node import DIAGNOSTICS_TYPE, MARKERS_TYPE
         from ..recorder import RunRecorder
         from ..sim import Simulation
-        from ..topics import TOPICS, qualified
+        from ..topics import DIAGNOSTICS_TYPE, MARKERS_TYPE, TOPICS, qualified
 
         self.train = scaled_train(n)
         self.scene = bench_scene(self.train, rate, duration)
