@@ -3,7 +3,7 @@ simulated second against the length of a run, and the peak memory of a 1-hour ru
 DDS): measurements, not tests. Prints progress to stderr; writes Markdown and PNG figures.
 
 (a) Tick compute time against n carts (1..100) and publish rate (50, 100, 200 Hz): the work of
-    the node's ``_on_tick`` (node.py) without the middleware: ``Simulation.advance`` (rk4, step
+    the node's tick (``session.RunSession.tick``) without the middleware: ``Simulation.advance`` (rk4, step
     0.01 s, plus the validity check), ``Simulation.outputs`` (compiled, as ``evaluate_outputs``),
     ``ros_msgs.OutputEncoder.encode`` (the messages' CDR bytes from templates),
     ``ros_msgs.TrainMarkers.encode`` every publish_rate / 10 Hz ticks, and the bag write of those
