@@ -30,7 +30,8 @@ def recover_main(args: argparse.Namespace) -> int:
 
 
 def node_main(args: argparse.Namespace) -> int:
-    from .node import main, resolve_config_path
+    from .config import resolve_config_path
+    from .node import main
 
     params = resolve_config_path(args.params_file or "sim.yaml")
     return main(["mta_node", "--ros-args", "--params-file", params, *args.ros_args[1:]])

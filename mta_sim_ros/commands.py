@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Callable
 
 #: Largest speed set-point the node accepts, m/s (either sign); beyond it the value is clamped.
 SPEED_LIMIT = 50.0
@@ -29,11 +30,14 @@ def command_ranges(scene) -> dict[str, tuple[float, float]]:
 
 
 class CommandInput:
-    """The latest command on one topic, with its wall-clock receipt time and what was wrong."""
+    """The latest command on one topic, with its receipt time on a steady wall ``clock``
+    (seconds; injectable so that tests set the time instead of sleeping) and what was wrong."""
 
-    def __init__(self, value: float, low: float, high: float, name: str):
+    def __init__(self, value: float, low: float, high: float, name: str,
+                 clock: Callable[[], float] = time.monotonic):
         self.value, self.low, self.high, self.name = value, low, high, name
-        self.received = time.monotonic()
+        self.clock = clock
+        self.received = clock()
         self.count = 0
         self.rejected = 0
         self.clamped = 0
@@ -51,8 +55,9 @@ class CommandInput:
             self.clamped += 1
             self.last_problem = f"{self.name}: {x:.4g} {problem}"
         self.value = value
-        self.received = time.monotonic()
+        self.received = self.clock()
         return value
 
     def age(self) -> float:
-        return time.monotonic() - self.received
+        """Seconds since the last accepted command (since construction before the first)."""
+        return self.clock() - self.received

@@ -39,6 +39,13 @@ COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
 WATCHDOG_TOPIC = "steering_watchdog"
 WATCHDOG_TYPE = "std_msgs/msg/Float64"
 
+# The node's extras: a drawing of the train (10 Hz by default) and its 1 Hz diagnostics.
+MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
+DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+
+#: Every topic of a node's bag (relative names as the node uses them) -> type.
+BAG_TOPICS = {**TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE, WATCHDOG_TOPIC: WATCHDOG_TYPE}
+
 
 def qualified(topic: str, namespace: str = "/") -> str:
     """Fully qualified name of a relative topic in ``namespace``."""

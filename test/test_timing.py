@@ -210,12 +210,11 @@ def test_real_time_factor_bad_arguments():
 
 
 RESERVE = """
-import json, os, threading, time
+import json, os, threading
 from mta_sim_ros.timing import reserve_cpu
 stop = threading.Event()
 other = threading.Thread(target=stop.wait)
-other.start()
-time.sleep(0.05)
+other.start()  # returns once the thread runs and has its native id
 cpus = sorted(os.sched_getaffinity(0))
 try:
     note = reserve_cpu(cpus[-1])

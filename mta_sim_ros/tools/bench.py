@@ -136,7 +136,7 @@ def header_lines(title: str, argv: list[str]) -> list[str]:
 
 
 def resolve_scene(path: str) -> str:
-    from ..node import resolve_config_path
+    from ..config import resolve_config_path
 
     return str(Path(resolve_config_path(path)).resolve())
 

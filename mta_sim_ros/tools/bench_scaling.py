@@ -3,7 +3,7 @@ simulated second against the length of a run, and the peak memory of a 1-hour ru
 DDS): measurements, not tests. Prints progress to stderr; writes Markdown and PNG figures.
 
 (a) Tick compute time against n carts (1..100) and publish rate (50, 100, 200 Hz): the work of
-    the node's ``_on_tick`` (node.py) without the middleware: ``Simulation.advance`` (rk4, step
+    the node's tick (``session.RunSession.tick``) without the middleware: ``Simulation.advance`` (rk4, step
     0.01 s, plus the validity check), ``Simulation.outputs`` (compiled, as ``evaluate_outputs``),
     ``ros_msgs.OutputEncoder.encode`` (the messages' CDR bytes from templates),
     ``ros_msgs.TrainMarkers.encode`` every publish_rate / 10 Hz ticks, and the bag write of those
@@ -79,7 +79,7 @@ def log(msg: str) -> None:
 
 def default_train():
     from ..model.loader import load_train
-    from ..node import config_dir
+    from ..config import config_dir
 
     return load_train(config_dir() / "trains" / "default.yaml")
 
@@ -149,10 +149,9 @@ class Ticker:
         from std_msgs.msg import Float64
 
         from .. import ros_msgs
-        from ..node import DIAGNOSTICS_TYPE, MARKERS_TYPE
         from ..recorder import RunRecorder
         from ..sim import Simulation
-        from ..topics import TOPICS, qualified
+        from ..topics import DIAGNOSTICS_TYPE, MARKERS_TYPE, TOPICS, qualified
 
         self.train = scaled_train(n)
         self.scene = bench_scene(self.train, rate, duration)

@@ -26,8 +26,9 @@ from geometry_msgs.msg import PoseArray
 from rclpy.node import Node
 from std_msgs.msg import Float64
 
+from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
-from ..node import QOS, resolve_config_path
+from ..node import QOS
 from ..paths import field_path, lateral_error
 from .maneuver import spin_until_done
 

@@ -21,8 +21,9 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
 from .. import maneuvers
+from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
-from ..node import QOS, resolve_config_path
+from ..node import QOS
 from ..sim import speed_setpoint, table_value
 
 

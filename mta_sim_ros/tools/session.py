@@ -33,7 +33,7 @@ def _mta(*args: str, **kwargs) -> subprocess.Popen:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..node import resolve_config_path
+    from ..config import resolve_config_path
 
     scene = resolve_config_path(args.scene)
     bag_dir = Path(args.bag_dir).resolve()

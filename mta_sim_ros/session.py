@@ -1,0 +1,343 @@
+"""A node run without ROS: the simulation, its commands, watchdog, pacing, pause and reset, live
+parameters, diagnostics and bag, driven by whoever calls it (the ROS node, or a test).
+
+:class:`RunSession` holds every decision the node makes; node.py only turns ROS callbacks into
+calls of it. It never imports rclpy: time comes from an injected steady wall ``clock`` (a test
+sets the time instead of sleeping), messages leave as CDR bytes through an injected ``publish``,
+log lines through an injected ``log`` and the bytes are made by injected :class:`Encoders`.
+
+Each tick (:meth:`RunSession.tick`) advances the model by one tick of simulated time holding the
+latest commands (zero-order hold), publishes the outputs stamped with simulation time and
+records the same bytes. Published time = clock_offset + the run's simulation time: a reset starts
+the model again while /clock goes on.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from pathlib import Path
+from typing import Callable, Mapping, Protocol, Sequence
+
+from .commands import CommandInput, command_ranges
+from .config import resolve_config_path
+from .diagnostics import Status, status
+from .integrate import IntegrationError
+from .model.guards import ModelValidityError
+from .model.loader import SpecError, load_scene
+from .pacing import Pacing
+from .params import BY_NAME, ConfigError, check_config, check_value
+from .recorder import RunRecorder
+from .runlog import run_metadata, tick_figures, tick_line
+from .sim import Simulation
+from .timing import TickStats
+from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC, qualified
+from .watchdog import SteeringWatchdog
+
+#: Seconds between two log lines about bad commands on one topic (/diagnostics says every one).
+WARN_EVERY = 1.0
+
+
+class OutputsEncoder(Protocol):
+    def encode(self, out) -> dict[str, bytes]:
+        """topic -> CDR bytes of the published outputs (topics.TOPICS but the commands) of one
+        sim.Outputs; the dict is handed to the bag writer as it is: a new one each call."""
+
+
+class MarkersEncoder(Protocol):
+    def encode(self, out) -> bytes:
+        """CDR bytes of the visualization_msgs/MarkerArray of the train at out.t."""
+
+
+class Encoders(Protocol):
+    """The seam between the session and a CDR encoding (today the node's rclpy-based one; a
+    ROS-free encoder with the same roles can take its place). Frame-dependent encoders are made
+    at start and again when frame_id changes, never per tick."""
+
+    def outputs(self, cart_names: Sequence[str], frame_id: str) -> OutputsEncoder: ...
+
+    def markers(self, train, frame_id: str) -> MarkersEncoder: ...
+
+    def diagnostics(self, t: float, name: str, level: int, message: str,
+                    values: Mapping[str, object]) -> bytes:
+        """A diagnostic_msgs/DiagnosticArray stamped t with one status (diagnostics.Status)."""
+
+    def float64(self, x: float) -> bytes:
+        """A std_msgs/Float64 (commands and watchdog take-overs, as recorded)."""
+
+
+class RunSession:
+    """One node's runs, one after the other (a reset starts the next), each in its own bag.
+
+    ``cfg``: every parameter of params.PARAMS (ConfigError when one is wrong, the scene cannot
+    be read or the fidelity level cannot run it); ``clock``: steady wall seconds; ``publish``:
+    takes a dict topic -> CDR bytes (the node's relative names); ``log``: has info, warning and
+    error (str); ``name`` and ``namespace``: the node's, for /diagnostics and the bag's topic
+    names; ``background``: the bag is written on a thread of its own (recorder.py);
+    ``compute_clock`` and ``cpu_clock`` time each tick's work (wall and this thread's CPU)."""
+
+    def __init__(self, cfg: Mapping[str, object], *, clock: Callable[[], float], encoders: Encoders,
+                 publish: Callable[[dict], None], log, name: str = "mta_sim", namespace: str = "/",
+                 background: bool = True, compute_clock: Callable[[], float] = time.perf_counter,
+                 cpu_clock: Callable[[], float] = time.thread_time):
+        self.cfg = dict(cfg)
+        check_config(self.cfg)
+        self.clock, self.enc, self.publish, self.log, self.name = clock, encoders, publish, log, name
+        self.compute_clock, self.cpu_clock = compute_clock, cpu_clock
+        try:
+            self.scene = load_scene(resolve_config_path(self.cfg["scene_file"]))
+        except SpecError as err:
+            raise ConfigError(f"parameter scene_file: {err}") from None
+        try:
+            self.sim = self._simulation()
+        except ValueError as err:  # a level this train cannot run (kinematic without a commanded speed)
+            raise ConfigError(f"parameter fidelity: {err}") from None
+        self.cart_names = [c.name for c in self.scene.train.carts]
+        ranges = command_ranges(self.scene)
+        self.steering = CommandInput(self.scene.initial.steering, *ranges["steering_angle"], "steering_angle", clock)
+        self.speed = CommandInput(self.sim.v_set, *ranges["speed_setpoint"], "speed_setpoint", clock)
+        self.inputs = {"steering_angle": self.steering, "speed_setpoint": self.speed}
+        self.warned_at = dict.fromkeys(COMMAND_TOPICS, -WARN_EVERY)
+        self.watchdog = SteeringWatchdog(self.steering, self.cfg["watchdog_timeout"], self.cfg["watchdog_action"])
+        self.clock_offset = 0.0  # published time = offset + run time; keeps /clock monotonic over resets
+        self.paused = False
+        self.halted = ""  # why the model stopped (jackknife...): it stays stopped until a reset
+        self._new_run()
+        self.ticks_since_markers = 0
+        self.marker_every = max(1, round(self.cfg["publish_rate"] / self.cfg["marker_rate"]))
+        self._make_encoders()
+
+        self.recorder = None
+        self.logged_bag_error = ""
+        if self.cfg["record"]:
+            in_bag = {t: qualified(t, namespace) for t in BAG_TOPICS}  # e.g. hitch_poses -> /unit1/hitch_poses
+            self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in BAG_TOPICS.items()},
+                                        self.run_metadata(), background=background, rename=in_bag)
+            self._start_bag()
+        self.pacing = Pacing(self.sim.tick, self.cfg["real_time_factor"], clock)  # from now: the timer's start
+        self.log.info(
+            f"scene '{self.scene.name}', {len(self.cart_names)} carts, {self.sim.method} step {self.sim.step:g} s, "
+            f"tick {self.sim.tick:g} s, real-time factor {self.cfg['real_time_factor']:g}; "
+            f"fidelity {self.sim.choice.reason}; {self.sim.compiled_note}")
+
+    def _simulation(self) -> Simulation:
+        """A Simulation of the scene with the integrator and fidelity parameters."""
+        self.sim_fidelity = self.cfg["fidelity"] or None  # what the running level was built from
+        with warnings.catch_warnings():  # said once, through the log, below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            sim = Simulation(self.scene, method=self.cfg["integrator_method"] or None,
+                             step=self.cfg["integrator_step"] or None, rate=self.cfg["publish_rate"],
+                             fidelity=self.cfg["fidelity"] or None)
+        if sim.stability_note:  # the configured step is past the method's stability limit
+            self.log.warning(sim.stability_note)
+        return sim
+
+    def _make_encoders(self) -> None:
+        """The tick's encoders for the current frame_id (at start and when it changes)."""
+        self.encoder = self.enc.outputs(self.cart_names, self.cfg["frame_id"])
+        self.markers = self.enc.markers(self.scene.train, self.cfg["frame_id"])
+
+    def _new_run(self) -> None:
+        """Fresh tick statistics and wall time for a run (start, reset)."""
+        self.stats = TickStats()  # wall time of each tick's work
+        # the tick thread's CPU time over the same work: wall >> CPU means the thread was preempted
+        # (other processes on the core), not that the tick's code was slow
+        self.cpu_stats = TickStats()
+        self.run_started = self.clock()
+
+    @property
+    def now(self) -> float:
+        """Published simulation time, s."""
+        return self.clock_offset + self.sim.t
+
+    @property
+    def period(self) -> float:
+        """Seconds between two ticks on the wall clock (0 = as fast as possible)."""
+        return self.pacing.period
+
+    # -- the tick --------------------------------------------------------------------------
+    def tick(self) -> None:
+        """One firing of the tick timer: nothing while paused or halted; else advance, publish
+        and record one tick. A model error halts the run (logged, ERROR in /diagnostics)."""
+        if self.paused or self.halted:
+            return
+        started, cpu_started = self.compute_clock(), self.cpu_clock()
+        if self.watchdog.update():
+            self._record({WATCHDOG_TOPIC: self.enc.float64(self.watchdog.command)})
+        try:
+            self.sim.advance(self.watchdog.command, self.speed.value)
+        except (ModelValidityError, IntegrationError) as err:
+            self.halted = str(err)
+            self.log.error(f"simulation halted (call reset to start again): {err}")
+            self.publish_diagnostics()
+            return
+        out = self.sim.outputs()
+        out.t = self.now
+        msgs = self.encoder.encode(out)  # CDR bytes: the same bytes go to DDS and to the bag
+        self.ticks_since_markers += 1
+        if self.ticks_since_markers >= self.marker_every:
+            self.ticks_since_markers = 0
+            msgs["markers"] = self.markers.encode(out)
+        self.publish(msgs)
+        if self.recorder is not None and self.recorder.recording:  # the same bytes, to the bag writer's thread
+            self.recorder.write_batch(msgs, round(self.now * 1e9))
+        cpu = self.cpu_clock() - cpu_started
+        period = self.pacing.period
+        self.stats.record(self.compute_clock() - started, deadline=period if period > 0 else None)
+        self.cpu_stats.record(cpu)
+
+    def _record(self, msgs: dict[str, bytes]) -> None:
+        """Log messages (topic -> CDR bytes) at the current simulation time. A failure of the
+        writing thread shows later, in ``recorder.error`` (publish_diagnostics logs it once)."""
+        if self.recorder is not None and self.recorder.recording:
+            self.recorder.write_batch(msgs, round(self.now * 1e9))
+
+    # -- commands, pause, reset, parameters ------------------------------------------------
+    def command(self, topic: str, x: float) -> None:
+        """A command received on ``topic`` (topics.COMMAND_TOPICS): recorded as received at the
+        simulation time it arrived, then held if valid, clamped to its range, or refused."""
+        inp = self.inputs[topic]
+        self._record({topic: self.enc.float64(x)})
+        if inp.take(x) != x and self.clock() - self.warned_at[topic] >= WARN_EVERY:  # refused or clamped
+            self.warned_at[topic] = self.clock()
+            self.log.warning(inp.last_problem)
+
+    def pause(self, paused: bool) -> str:
+        """Pause (no ticks, simulated time stands) or run on; returns what it is now."""
+        self.paused = bool(paused)
+        self.pacing.pause(self.paused, self.now)
+        return "paused" if self.paused else "running"
+
+    def reset(self) -> str:
+        """Close this run's bag with its figures, back to the scene's start (with the fidelity
+        level asked for since, if any) at the published time reached, open a new bag; returns
+        what it did."""
+        if self.recorder is not None:
+            self.recorder.close(self.run_figures())
+        self._new_run()
+        self.watchdog.forget()  # so that the new bag records it again if it still holds
+        self.clock_offset = self.now
+        if (self.cfg["fidelity"] or None) != self.sim_fidelity:  # the level changes only here
+            self.sim = self._simulation()
+            if self.recorder is not None:
+                self.recorder.metadata.update(self.run_metadata())
+            self.log.info(f"fidelity {self.sim.choice.reason}")
+        self.sim.reset()
+        self.steering.value = self.scene.initial.steering
+        self.speed.value = self.sim.v_set
+        self.halted = ""
+        self.pacing.restart(self.now)
+        path = self._start_bag()
+        message = f"reset to the start of '{self.scene.name}' at t = {self.now:.3f} s" + (
+            f"; recording {path}" if path else "")
+        self.log.info(message)
+        return message
+
+    def set_parameters(self, changes: Mapping[str, object]) -> str:
+        """Apply parameter changes (name -> value; names not in params.PARAMS are ignored) all
+        or none; returns why they are refused ('' when applied)."""
+        for name, value in changes.items():
+            spec = BY_NAME.get(name)
+            if spec is None:
+                continue
+            if not spec.live and value != self.cfg[name]:
+                return (f"{name} cannot change while running: it is fixed at start (restart the node with "
+                        f"the new value)")
+            problem = check_value(spec, value)
+            if problem:
+                return f"{name}: {problem}"
+            if name == "fidelity":
+                try:
+                    Simulation(self.scene, rate=self.cfg["publish_rate"], fidelity=value or None)
+                except ValueError as err:
+                    return f"fidelity: {err}"
+        for name, value in changes.items():
+            if name in BY_NAME:
+                self.cfg[name] = value
+        if "real_time_factor" in changes:
+            self.pacing.set_target(self.cfg["real_time_factor"], self.now)
+        self.watchdog.timeout, self.watchdog.action = self.cfg["watchdog_timeout"], self.cfg["watchdog_action"]
+        if "frame_id" in changes:
+            self._make_encoders()  # the frame is part of the templates
+        if "fidelity" in changes:
+            self.log.info(f"fidelity {self.cfg['fidelity'] or 'of the scene'}: applies at the next reset")
+        return ""
+
+    # -- run log and diagnostics -----------------------------------------------------------
+    def run_metadata(self) -> dict[str, str]:
+        """The bag's metadata record mta_sim_ros (runlog.run_metadata; clock_offset is added when
+        each bag starts)."""
+        return run_metadata(self.scene, self.sim, self.cfg)
+
+    def run_figures(self) -> dict[str, str]:
+        """The bag's closing record mta_sim_ros.run: tick statistics, the bag writer thread's CPU
+        (off the tick, not in tick_*), published and run time, the run's wall time."""
+        figures = tick_figures(self.stats, self.cpu_stats)
+        if self.recorder is not None:
+            figures["recorder_thread_cpu"] = repr(self.recorder.thread_cpu)
+        figures.update(sim_time=repr(self.now), tick_period=repr(self.period),
+                       run_sim_time=repr(self.sim.t), run_wall_time=repr(self.clock() - self.run_started))
+        return figures
+
+    def _start_bag(self) -> Path | None:
+        if self.recorder is None:
+            return None
+        self.recorder.metadata["clock_offset"] = repr(self.clock_offset)
+        path = self.recorder.start()
+        if path is None:
+            self.logged_bag_error = self.recorder.error
+            self.log.error(self.recorder.error)
+        else:
+            self.log.info(f"recording {path}")
+        return path
+
+    def diagnostics(self) -> Status:
+        """What /diagnostics says now (it also samples the real-time factor: pacing.py)."""
+        rtf, lag = self.pacing.measure(self.now)
+        stats, steering, recorder = self.stats, self.steering, self.recorder
+        values = {
+            "sim_time_s": self.now,
+            "real_time_factor": rtf,
+            "real_time_factor_target": self.cfg["real_time_factor"],
+            "lag_s": lag,
+            "tick_compute_p50_ms": stats.window_percentile(50) * 1e3,
+            "tick_compute_p99_ms": stats.window_percentile(99) * 1e3,
+            "tick_compute_max_ms": stats.window_max * 1e3,
+            "tick_cpu_p99_ms": self.cpu_stats.window_percentile(99) * 1e3,
+            "deadline_misses": stats.deadline_misses,
+            "tick_period_ms": self.period * 1e3,
+            "steering_command_age_s": steering.age(),
+            "steering_commands": steering.count,
+            "steering_rejected": steering.rejected,
+            "steering_clamped": steering.clamped,
+            "jackknife_margin_deg": math.degrees(self.sim.outputs().jackknife_margin),
+            "fidelity": self.sim.level,
+            "fidelity_reason": self.sim.choice.reason,
+            "fidelity_at_next_reset": self.cfg["fidelity"] or "the scene's",
+            "paused": self.paused,
+            "bag": str(recorder.path) if recorder and recorder.recording else "",
+        }
+        problems = [recorder.error if recorder else "", steering.last_problem, self.speed.last_problem]
+        if self.watchdog.stale():
+            problems.append(f"steering command stale ({steering.age():.1f} s): {self.cfg['watchdog_action']}")
+        return status(self.halted, problems, values)
+
+    def publish_diagnostics(self) -> None:
+        """Publish and record the diagnostics (the 1 Hz timer, and at a halt); a bag error is
+        said once in the log, every time in /diagnostics."""
+        if self.recorder is not None and self.recorder.error not in ("", self.logged_bag_error):
+            self.logged_bag_error = self.recorder.error
+            self.log.error(self.recorder.error)
+        s = self.diagnostics()
+        data = self.enc.diagnostics(self.now, f"{self.name}: simulation", s.level, s.message, s.values)
+        self.publish({"/diagnostics": data})
+        self._record({"/diagnostics": data})
+
+    def close(self) -> None:
+        """Finish the run (normal exit, SIGINT, SIGTERM): its tick line in the log, its bag with
+        its figures."""
+        line = tick_line(self.stats, self.cpu_stats, self.period)
+        if line:
+            self.log.info(line)
+        if self.recorder is not None:
+            self.recorder.close(self.run_figures())
