@@ -21,7 +21,8 @@ def run_metadata(scene, sim, cfg: dict) -> dict[str, str]:
         "step": str(sim.step),
         "stepper_step": str(sim.stepper_step),  # smaller than step when sub-stepping for stability
         "stability_note": sim.stability_note or "",
-        "right_hand_side": sim.compiled_note,  # compiled (numba) tick or the Python path; same results
+        "split_kinks": str(sim.split_kinks),  # steps split where the right-hand side has a kink
+        "right_hand_side": sim.compiled_note,  # compiled kernels or the same as plain Python; same results
         "rate": str(cfg["publish_rate"]),
         "algorithm": "2",
         "fidelity": sim.level,

@@ -470,3 +470,23 @@ def test_speed_table_and_number(tmp_path):
     scene["speed"] = {"table": {"time": [0, 10], "speed": [3, 2]}}
     assert loader.load_scene(write_pair(tmp_path, scene=scene)[1]).speed == spec.Table((0.0, 10.0), (3.0, 2.0))
     assert loader.load_scene(write_pair(tmp_path)[1]).speed == spec.Table((0.0,), (3.0,))
+
+
+def test_a_scene_text_takes_the_train_given_and_opens_no_file(tmp_path, monkeypatch):
+    """load_scene_text (what mta replay --resimulate reads from a bag): the scene's train: names a
+    file that must not be opened, whatever it is (absolute, a directory, a path in a string)."""
+    import builtins
+
+    train_text = (CONFIG / "trains" / "default.yaml").read_text()
+    scene_text = (CONFIG / "scenes" / "headland_turn.yaml").read_text()
+    opened = []
+    real_open = builtins.open
+    monkeypatch.setattr(builtins, "open", lambda *a, **k: opened.append(a[0]) or real_open(*a, **k))
+    train = loader.load_train_text(train_text, "recorded train")
+    for named in ("/etc/passwd", "..", '"/etc/shadow"', "../trains/default.yaml"):
+        text = re.sub(r"(?m)^train:.*$", f"train: {named}", scene_text)
+        scene = loader.load_scene_text(text, "recorded scene", train)
+        assert scene.train is train and scene.name == "headland_turn"
+    assert opened == []
+    with pytest.raises(loader.SpecError, match="train: .* in top level of recorded scene must be given"):
+        loader.load_scene_text(re.sub(r"(?m)^train:.*$", "", scene_text), "recorded scene", train)

@@ -73,11 +73,17 @@ def _read(path: Union[str, os.PathLike]) -> tuple[dict, str]:
     source = str(path)
     try:
         with open(path, encoding="utf-8") as stream:
-            data = yaml.load(stream, Loader=_Loader)
+            return _parse(stream, source)
     except FileNotFoundError:
         _fail("file", "not found", "document", source, "an existing YAML file")
     except (OSError, UnicodeDecodeError) as error:
         _fail("file", f"unreadable ({error})", "document", source, "a readable UTF-8 YAML file")
+
+
+def _parse(stream, source: str) -> tuple[dict, str]:
+    """The top-level mapping of a YAML document (a text or an open file), and its source."""
+    try:
+        data = yaml.load(stream, Loader=_Loader)
     except _RepeatedKey as error:
         _fail(error.key, "given twice", _line(error.mark), source, "given once")
     except yaml.MarkedYAMLError as error:
@@ -415,6 +421,12 @@ def load_train(path: Union[str, os.PathLike]) -> spec.Train:
     return _train(*_read(path))
 
 
+def load_train_text(text: str, source: str) -> spec.Train:
+    """Check a train given as YAML text (e.g. as a bag recorded it); ``source`` names it in
+    messages."""
+    return _train(*_parse(text, source))
+
+
 # --------------------------------------------------------------------------- scenes
 
 
@@ -539,9 +551,12 @@ def _needs(top: _Section) -> Optional[spec.Needs]:
     return spec.Needs(**{key: s.number(key, POSITIVE) for key in s.values})
 
 
-def _scene(data: dict, source: str) -> spec.Scene:
+def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.Scene:
     top = _Section(data, "", source, SCENE_FIELDS)
-    train = _scene_train(top)
+    if train is None:
+        train = _scene_train(top)
+    else:
+        top.text("train")  # still a required field; the train itself is the one given
     initial = _initial(top, train)
     speed = _speed(top)
     publish_rate = top.number("publish_rate", POSITIVE, spec.Scene.publish_rate)
@@ -575,6 +590,13 @@ def _scene_train(top: _Section) -> spec.Train:
 def load_scene(path: Union[str, os.PathLike]) -> spec.Scene:
     """Read and check a scene file and the train file it names (layout: config/scenes/*.yaml)."""
     return _scene(*_read(path))
+
+
+def load_scene_text(text: str, source: str, train: spec.Train) -> spec.Scene:
+    """Check a scene given as YAML text with its train given too (a bag records both): no file
+    is opened, whatever the scene's ``train:`` names."""
+    data, source = _parse(text, source)
+    return _scene(data, source, train)
 
 
 # --------------------------------------------------------------------------- any file

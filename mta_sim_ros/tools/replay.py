@@ -38,7 +38,6 @@ import os
 import re
 import signal
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -291,45 +290,21 @@ class ResimulationError(Exception):
     """The bag cannot be re-simulated (no metadata, files that do not load, ...)."""
 
 
-def rebuild_scene(meta: dict[str, str], workdir: str):
-    """The run's scene from the metadata's file texts: written to ``workdir`` (scene and train
-    under their recorded base names), the scene's ``train:`` pointing at the written train."""
-    from ..model.loader import SpecError, load_scene
+def rebuild_scene(meta: dict[str, str]):
+    """The run's scene from the metadata's file texts (the scene and its train as they were read);
+    no file is opened, whatever the recorded texts name."""
+    from ..model.loader import SpecError, load_scene_text, load_train_text
 
     for key in ("scene_yaml", "train_yaml"):
         if key not in meta:
             raise ResimulationError(f"metadata mta_sim_ros has no {key}")
     scene_name = os.path.basename(meta.get("scene_file") or "scene.yaml") or "scene.yaml"
     train_name = os.path.basename(meta.get("train_file") or "train.yaml") or "train.yaml"
-    os.makedirs(os.path.join(workdir, "scene"), exist_ok=True)
-    os.makedirs(os.path.join(workdir, "train"), exist_ok=True)
-    train_path = os.path.join(workdir, "train", train_name)
-    scene_path = os.path.join(workdir, "scene", scene_name)
-    Path(train_path).write_text(meta["train_yaml"])
-    Path(scene_path).write_text(point_scene_at_train(meta["scene_yaml"], train_path))
     try:
-        return load_scene(scene_path)
+        train = load_train_text(meta["train_yaml"], f"the recorded train {train_name!r}")
+        return load_scene_text(meta["scene_yaml"], f"the recorded scene {scene_name!r}", train)
     except SpecError as err:
         raise ResimulationError(f"the recorded scene does not load: {err}") from None
-
-
-def point_scene_at_train(scene_yaml: str, train_path: str) -> str:
-    """The scene text with its top-level ``train:`` naming ``train_path`` (absolute)."""
-    import json
-
-    text, count = re.subn(r"(?m)^train[ \t]*:[^\n]*$", lambda m: "train: " + json.dumps(train_path), scene_yaml)
-    if count == 1:
-        return text
-    # not a one-line block key (flow style, ...): through YAML, read as the loader reads it
-    import yaml
-
-    from ..model.loader import _Loader
-
-    data = yaml.load(scene_yaml, Loader=_Loader)
-    if not isinstance(data, dict) or "train" not in data:
-        raise ResimulationError("the recorded scene has no train:")
-    data["train"] = train_path
-    return yaml.safe_dump(data, sort_keys=False)
 
 
 def _topics_by_name(bag: str, names) -> dict[str, str]:
@@ -437,11 +412,13 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
         algorithm = int(meta.get("algorithm", "2"))
     except (KeyError, ValueError) as err:
         raise ResimulationError(f"metadata mta_sim_ros: missing or bad {err}") from None
-    with tempfile.TemporaryDirectory(prefix="mta_replay_") as workdir:
-        scene = rebuild_scene(meta, workdir)
+    scene = rebuild_scene(meta)
+    # bags from before kink splitting (no split_kinks key) were stepped across the kinks
+    split_kinks = meta.get("split_kinks", "False") == "True"
     try:
         sim = Simulation(scene, method=method or recorded_method, step=step or recorded_step, rate=rate,
-                         algorithm=algorithm, fidelity=meta.get("fidelity"))  # the recorded level
+                         algorithm=algorithm, fidelity=meta.get("fidelity"),  # the recorded level
+                         split_kinks=split_kinks)
     except ValueError as err:
         raise ResimulationError(str(err)) from None
     result = Resimulation(bag=bag, scene=scene.name, method=sim.method, step=sim.step, tick=sim.tick,
