@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mta_sim_ros import maneuvers
-from mta_sim_ros.maneuvers import MANEUVERS, ParamError, expand
+from mta_sim_ros.model import maneuvers
+from mta_sim_ros.model.maneuvers import MANEUVERS, ParamError, expand
 from mta_sim_ros.model import loader
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"

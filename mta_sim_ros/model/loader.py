@@ -24,8 +24,8 @@ from typing import Any, Callable, Iterable, NoReturn, Optional, Union
 import numpy as np
 import yaml
 
-from mta_sim_ros import maneuvers
-from mta_sim_ros.model import spec
+from . import maneuvers
+from . import spec
 
 INTEGRATOR_METHODS = spec.INTEGRATOR_METHODS
 TRACTION_LAWS = ("constant", "governor", "prescribed_speed")

@@ -20,7 +20,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from .. import maneuvers
+from ..model import maneuvers
 from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
 from ..node import QOS

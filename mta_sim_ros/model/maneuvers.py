@@ -20,7 +20,7 @@ from typing import Callable, Mapping, Optional
 
 import numpy as np
 
-from mta_sim_ros.model.spec import Table
+from .spec import Table
 
 # rad: largest gap between a sampled smooth shape and its linear interpolation (half the 1e-4
 # rad budget, so round-off never pushes it over).
