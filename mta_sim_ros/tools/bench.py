@@ -88,6 +88,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     add_scaling(sub)
 
+    from .bench_kinks import add_kinks  # every method across the kinks, split and not
+
+    add_kinks(sub)
+
     t = sub.add_parser("tick-parts", help="the node tick's parts, old way against new, side by side offline",
                        description=tick_parts_main.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
