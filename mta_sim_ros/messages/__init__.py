@@ -1,0 +1,27 @@
+"""The simulator's messages as CDR bytes, ROS-free: what the node publishes and every bag records.
+
+* :mod:`.outputs`: :class:`OutputEncoder` (the five output topics) and :class:`CommandEncoder`
+  (the two commands), from an Outputs sample, per tick;
+* :mod:`.markers`: :class:`TrainMarkers`, the drawing of the train (visualization_msgs/MarkerArray);
+* :mod:`.diagnostics`: :func:`encode_diagnostics`, the DiagnosticArray of /diagnostics.
+
+All of it goes through one serializer, :mod:`mta_sim_ros.bag.cdr`; only numpy and the standard
+library besides, so ``mta run`` works without a ROS install and writes the node's bytes.
+"""
+from .diagnostics import DIAGNOSTICS_TYPE, HARDWARE_ID, diagnostic_array, encode_diagnostics, format_value
+from .markers import MARKERS_TYPE, TrainMarkers, cart_widths, train_markers
+from .outputs import CommandEncoder, OutputEncoder
+
+__all__ = [
+    "DIAGNOSTICS_TYPE",
+    "HARDWARE_ID",
+    "MARKERS_TYPE",
+    "CommandEncoder",
+    "OutputEncoder",
+    "TrainMarkers",
+    "cart_widths",
+    "diagnostic_array",
+    "encode_diagnostics",
+    "format_value",
+    "train_markers",
+]
