@@ -40,6 +40,7 @@ from std_srvs.srv import SetBool, Trigger
 from . import __version__, ros_msgs
 from .commands import CommandInput, command_ranges
 from .integrate import METHODS, IntegrationError
+from .messages import OutputEncoder, TrainMarkers, encode_diagnostics
 from .model.guards import ModelValidityError
 from .model.loader import SpecError, load_scene
 from .recorder import RunRecorder
@@ -253,10 +254,10 @@ class SimNode(Node):
         self.cpu_stats.record(cpu)
 
     def _make_encoders(self) -> None:
-        """The tick's messages as CDR templates (ros_msgs.OutputEncoder, TrainMarkers), for the
+        """The tick's messages as CDR templates (messages.OutputEncoder, TrainMarkers), for the
         current frame_id (at start and when the parameter changes)."""
-        self.encoder = ros_msgs.OutputEncoder(self.cart_names, self.cfg["frame_id"])
-        self.markers = ros_msgs.TrainMarkers(self.scene.train, self.cfg["frame_id"])
+        self.encoder = OutputEncoder(self.cart_names, self.cfg["frame_id"])
+        self.markers = TrainMarkers(self.scene.train, self.cfg["frame_id"])
 
     def _held_steering(self) -> float:
         """The steering command for this tick: the latest one, or 0 (straight) while the watchdog
@@ -420,8 +421,8 @@ class SimNode(Node):
             problems.append(f"steering command stale ({self.steering.age():.1f} s): "
                             f"{self.cfg['watchdog_action']}")
         level = DiagnosticStatus.ERROR if self.halted else DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
-        msg = ros_msgs.diagnostic_array(self.now, f"{self.get_name()}: simulation", level,
-                                        "; ".join(problems) or "running", values)
+        msg = encode_diagnostics(self.now, f"{self.get_name()}: simulation", level,
+                                 "; ".join(problems) or "running", values)
         self.pubs["/diagnostics"].publish(msg)
         self._record({"/diagnostics": msg})
 
