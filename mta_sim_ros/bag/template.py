@@ -11,6 +11,7 @@ walk over the fields, per message.
 """
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Mapping
 
@@ -25,26 +26,17 @@ _LAYOUTS = {"byte": ("<u1", "<B"), "char": ("<u1", "<B"), "int8": ("<i1", "<b"),
 
 
 class _Group:
-    """The slots of one group: where they are and how to write them."""
+    """The slots of one group: where they are, and ``put``, the call that writes their values."""
 
     def __init__(self, buf: bytearray, name: str, type_: str, offsets: list[int], broadcast: bool):
         dtype, fmt = _LAYOUTS[type_]
         dtype = np.dtype(dtype)
-        self.name, self.type, self.broadcast = name, type_, broadcast
-        self.count = len(offsets)
-        if self.count == 1:  # one number: struct is quicker than numpy indexing
-            self._struct, self._at = struct.Struct(fmt), 4 + offsets[0]
+        self.name, self.type, self.broadcast, self.count = name, type_, broadcast, len(offsets)
+        if broadcast and self.count == 1:  # one number: struct is quicker than numpy indexing
+            self.put = functools.partial(struct.Struct(fmt).pack_into, buf, 4 + offsets[0])
         else:
-            self._view = np.frombuffer(buf, dtype=dtype, count=(len(buf) - 4) // dtype.itemsize, offset=4)
-            self._index = np.array(offsets, dtype=np.intp) // dtype.itemsize
-        self._buf = buf
-
-    def put(self, values) -> None:
-        if self.count == 1:
-            value = values if self.broadcast or np.ndim(values) == 0 else values[0]
-            self._struct.pack_into(self._buf, self._at, value)
-        else:
-            self._view[self._index] = values
+            view = np.frombuffer(buf, dtype=dtype, count=(len(buf) - 4) // dtype.itemsize, offset=4)
+            self.put = functools.partial(view.__setitem__, np.array(offsets, dtype=np.intp) // dtype.itemsize)
 
 
 class CdrTemplate:
@@ -74,6 +66,7 @@ class CdrTemplate:
         for slot, offset, type_ in slots:
             met.setdefault(slot.group, []).append((slot, offset, type_))
         self.groups = {name: self._group(name, found) for name, found in met.items()}
+        self._puts = {name: group.put for name, group in self.groups.items()}
 
     def _group(self, name: str, found: list[tuple[Slot, int, str]]) -> _Group:
         def refuse(why: str):
@@ -105,9 +98,9 @@ class CdrTemplate:
 
     def fill(self, **values) -> bytes:
         """The message's bytes with these groups' values (groups not given keep theirs)."""
-        groups = self.groups
+        puts = self._puts
         for name, v in values.items():
-            groups[name].put(v)
+            puts[name](v)
         return bytes(self.buf)
 
 
