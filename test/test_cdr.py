@@ -343,3 +343,26 @@ def test_char_is_an_unsigned_byte():
     assert data == b"\x00\x01\x00\x00\xc8" and deserialize_message(data, Char).data == 200
     with pytest.raises(EncodeError, match=r"data: char must be in \[0, 255\], got -1"):
         cdr.encode("std_msgs/msg/Char", {"data": -1})
+
+
+def test_the_serializer_imports_only_the_standard_library_numpy_and_its_own_layer():
+    """No rclpy, no mcap_ros2 (least of all its private _dynamic), nothing of ROS."""
+    import ast
+    import sys
+    from pathlib import Path
+
+    bag = Path(cdr.__file__).parent
+    for name in ("cdr.py", "definition.py", "template.py"):
+        tree = ast.parse((bag / name).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                tops = [alias.name.split(".")[0] for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:  # relative: only the serializer's own modules and the schemas
+                    assert node.level == 1 and node.module in ("schemas", "definition", "cdr"), (name, node.module)
+                    continue
+                tops = [node.module.split(".")[0]]
+            else:
+                continue
+            for top in tops:
+                assert top in sys.stdlib_module_names or top in ("numpy", "__future__"), (name, top)
