@@ -28,7 +28,6 @@ records the byte offset of each slot as it writes it.
 from __future__ import annotations
 
 import functools
-import math
 import numbers
 import struct
 from collections.abc import Mapping
