@@ -4,7 +4,8 @@ Glue between ROS and :class:`session.RunSession`, which decides everything (paci
 pause and reset, parameter checks, diagnostics, the bag): this module declares the parameters
 of params.PARAMS, makes the publishers, subscriptions, services and the two steady-clock timers
 (the tick every session.period seconds, the diagnostics at 1 Hz) and hands each callback
-straight to the session. The session's messages arrive here as CDR bytes (:class:`RclpyEncoders`).
+straight to the session. The session's messages arrive here as CDR bytes (messages.Encoders), published as
+they are.
 
 Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock and
 /diagnostics, which are global by convention):
@@ -27,7 +28,6 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
@@ -40,22 +40,6 @@ from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC
 
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.VOLATILE)
-
-
-class RclpyEncoders:
-    """session.Encoders with rclpy: the CDR templates of ros_msgs for the tick, message objects
-    serialized by rclpy for the rest."""
-
-    outputs = staticmethod(ros_msgs.OutputEncoder)
-    markers = staticmethod(ros_msgs.TrainMarkers)
-
-    @staticmethod
-    def diagnostics(t, name, level, message, values) -> bytes:
-        return serialize_message(ros_msgs.diagnostic_array(t, name, level, message, values))
-
-    @staticmethod
-    def float64(x: float) -> bytes:
-        return serialize_message(Float64(data=x))
 
 
 def descriptor(p: Param) -> ParameterDescriptor:
@@ -80,7 +64,7 @@ class SimNode(Node):
         cfg = {p.name: self.get_parameter(p.name).value for p in PARAMS}
         self.pubs = {topic: self.create_publisher(ros_msgs.message_class(type_name), topic, QOS)
                      for topic, type_name in BAG_TOPICS.items() if topic not in (*COMMAND_TOPICS, WATCHDOG_TOPIC)}
-        self.session = RunSession(cfg, clock=time.monotonic, encoders=RclpyEncoders(), publish=self._publish,
+        self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish,
                                   log=self.get_logger(), name=self.get_name(), namespace=self.get_namespace())
         for topic in COMMAND_TOPICS:
             self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data), QOS)

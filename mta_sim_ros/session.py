@@ -19,6 +19,7 @@ import warnings
 from pathlib import Path
 from typing import Callable, Mapping, Protocol, Sequence
 
+from . import messages
 from .commands import CommandInput, command_ranges
 from .config import resolve_config_path
 from .diagnostics import Status, status
@@ -50,9 +51,9 @@ class MarkersEncoder(Protocol):
 
 
 class Encoders(Protocol):
-    """The seam between the session and a CDR encoding (today the node's rclpy-based one; a
-    ROS-free encoder with the same roles can take its place). Frame-dependent encoders are made
-    at start and again when frame_id changes, never per tick."""
+    """The seam between the session and a CDR encoding (by default ``messages.Encoders``, the one
+    encoder the offline run uses too). Frame-dependent encoders are made at start and again when
+    frame_id changes, never per tick."""
 
     def outputs(self, cart_names: Sequence[str], frame_id: str) -> OutputsEncoder: ...
 
@@ -72,17 +73,19 @@ class RunSession:
     ``cfg``: every parameter of params.PARAMS (ConfigError when one is wrong, the scene cannot
     be read or the fidelity level cannot run it); ``clock``: steady wall seconds; ``publish``:
     takes a dict topic -> CDR bytes (the node's relative names); ``log``: has info, warning and
-    error (str); ``name`` and ``namespace``: the node's, for /diagnostics and the bag's topic
+    error (str); ``encoders``: the CDR encoding (messages.Encoders by default); ``name`` and
+    ``namespace``: the node's, for /diagnostics and the bag's topic
     names; ``background``: the bag is written on a thread of its own (recorder.py);
     ``compute_clock`` and ``cpu_clock`` time each tick's work (wall and this thread's CPU)."""
 
-    def __init__(self, cfg: Mapping[str, object], *, clock: Callable[[], float], encoders: Encoders,
-                 publish: Callable[[dict], None], log, name: str = "mta_sim", namespace: str = "/",
+    def __init__(self, cfg: Mapping[str, object], *, clock: Callable[[], float], publish: Callable[[dict], None],
+                 log, encoders: Encoders | None = None, name: str = "mta_sim", namespace: str = "/",
                  background: bool = True, compute_clock: Callable[[], float] = time.perf_counter,
                  cpu_clock: Callable[[], float] = time.thread_time):
         self.cfg = dict(cfg)
         check_config(self.cfg)
-        self.clock, self.enc, self.publish, self.log, self.name = clock, encoders, publish, log, name
+        self.clock, self.publish, self.log, self.name = clock, publish, log, name
+        self.enc = encoders if encoders is not None else messages.Encoders()
         self.compute_clock, self.cpu_clock = compute_clock, cpu_clock
         try:
             self.scene = load_scene(resolve_config_path(self.cfg["scene_file"]))

@@ -11,7 +11,6 @@ is needed; it requires profile "ros2" and a summary section, so a truncated
 file must first go through ``recover()``.
 """
 
-import importlib
 import os
 import resource
 import signal
@@ -48,6 +47,8 @@ from mta_sim_ros.bag import (
     summary,
 )
 from mta_sim_ros.bag.schemas import SEPARATOR, share_dirs
+
+from cdr_refs import assert_fields, rclpy_message
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -102,19 +103,6 @@ def by_topic(messages) -> dict[str, list]:
     return dict(grouped)
 
 
-def assert_same(actual, expected, where="msg"):
-    """Recursively compare a decoded message (attributes) with the written dict."""
-    if isinstance(expected, dict):
-        for key, value in expected.items():
-            assert_same(getattr(actual, key), value, f"{where}.{key}")
-    elif isinstance(expected, list):
-        assert len(actual) == len(expected), where
-        for i, (a, e) in enumerate(zip(actual, expected)):
-            assert_same(a, e, f"{where}[{i}]")
-    else:
-        assert actual == expected, f"{where}: {actual!r} != {expected!r}"
-
-
 def assert_messages_equal(actual, expected):
     """Same topics, same per-topic sequences of (log time, values)."""
     got, want = by_topic(actual), by_topic(expected)
@@ -123,7 +111,7 @@ def assert_messages_equal(actual, expected):
         assert len(got[topic]) == len(items), topic
         for (t_got, msg_got), (t_want, msg_want) in zip(got[topic], items):
             assert t_got == t_want
-            assert_same(msg_got, msg_want, topic)
+            assert_fields(msg_got, msg_want, topic)
 
 
 def read_with_rosbags(path: Path):
@@ -231,9 +219,9 @@ def test_bounded_and_fixed_arrays_roundtrip(fake_msgs, tmp_path):
         bag.write("/fake", msg, log_time_ns=5)
     [(topic, t_ns, decoded)] = list(read_messages(path))
     assert (topic, t_ns) == ("/fake", 5)
-    assert_same(decoded, msg)
+    assert_fields(decoded, msg)
     [(_, _, by_rosbags)], _ = read_with_rosbags(path)
-    assert_same(by_rosbags, msg)
+    assert_fields(by_rosbags, msg)
 
 
 def test_missing_definitions_name_the_type(fake_msgs):
@@ -338,21 +326,6 @@ def test_read_back_with_rosbags(sample):
         assert qos.durability == QosDurability.VOLATILE
 
 
-def ros_message(type_name: str, data: dict):
-    """The rclpy message object of ``type_name`` holding the plain-dict ``data``."""
-    pkg, _, name = type_name.split("/")
-    msg = getattr(importlib.import_module(f"{pkg}.msg"), name)()
-    field_types = msg.get_fields_and_field_types()  # e.g. "sequence<geometry_msgs/Pose>"
-    for key, value in data.items():
-        nested = field_types[key].removeprefix("sequence<").rstrip(">").replace("/", "/msg/")
-        if isinstance(value, dict):
-            value = ros_message(nested, value)
-        elif isinstance(value, list) and value and isinstance(value[0], dict):
-            value = [ros_message(nested, item) for item in value]
-        setattr(msg, key, value)
-    return msg
-
-
 def test_rclpy_interoperability(sample, tmp_path):
     """rclpy decodes the bag's CDR to the written values, and rclpy-serialized bytes
     stored with write_raw() decode back to them (only CDR padding bytes may differ)."""
@@ -365,7 +338,7 @@ def test_rclpy_interoperability(sample, tmp_path):
         for topic, type_name in TOPICS.items():
             bag.add_topic(topic, type_name)
         for data, (topic, t_ns, msg) in zip(stored, written):
-            ros_msg = ros_message(TOPICS[topic], msg)
+            ros_msg = rclpy_message(TOPICS[topic], msg)
             assert serialization.deserialize_message(data, type(ros_msg)) == ros_msg, topic
             bag.write_raw(topic, serialization.serialize_message(ros_msg), t_ns)
     assert_messages_equal(list(read_messages(raw_path)), written)

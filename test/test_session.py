@@ -1,8 +1,8 @@
 """The node's policy, in process (mta_sim_ros.session.RunSession): no DDS, no sleeping.
 
 Time is set, not waited for: the session's steady clock (and the clock that times each tick's
-work) is a FakeClock the test moves. The encoders are the node's own (node.RclpyEncoders: rclpy
-message packages, no middleware), so the bags written here are real and read back.
+work) is a FakeClock the test moves. The encoders are the node's own (messages.Encoders, the
+session's default), so the bags written here are real; they are read back with rclpy's decoder.
 """
 from __future__ import annotations
 
@@ -21,7 +21,6 @@ from visualization_msgs.msg import MarkerArray
 from mta_sim_ros.bag import BagError, read_messages, read_metadata
 from mta_sim_ros.diagnostics import ERROR, OK, WARN
 from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.node import RclpyEncoders
 from mta_sim_ros.params import PARAMS, ConfigError
 from mta_sim_ros.session import RunSession
 from mta_sim_ros.tools.replay import resimulate
@@ -73,7 +72,7 @@ class Run:
         cfg.update(overrides)
         self.clock, self.log, self.published = FakeClock(), Log(), []
         self.bag_dir = Path(cfg["bag_dir"])
-        self.s = RunSession(cfg, clock=self.clock, encoders=RclpyEncoders(), publish=self.published.append,
+        self.s = RunSession(cfg, clock=self.clock, publish=self.published.append,
                             log=self.log, background=False, compute_clock=self.clock, cpu_clock=self.clock)
 
     def ticks(self, n: int, wall: float = TICK) -> None:

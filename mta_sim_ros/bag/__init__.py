@@ -1,6 +1,9 @@
 """MCAP logging layer of mta_sim_ros (rosbag2 Jazzy compatible, no rclpy needed).
 
 * :mod:`.schemas`: ``message_definition()``, the ros2msg schema text rosbag2 stores.
+* :mod:`.definition`: that text parsed into the fields of each message type.
+* :mod:`.cdr`: the CDR serializer driven by it (``encode()``, ``MessageEncoder``), no rclpy.
+* :mod:`.template`: ``CdrTemplate``, a message encoded once with slots, filled per message.
 * :mod:`.writer`: :class:`BagWriter` and plain-dict message builders.
 * :mod:`.reader`: ``read_messages()``, ``read_metadata()``, ``summary()`` and
   ``recover()`` for files cut short by a killed writer.

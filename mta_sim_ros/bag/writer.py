@@ -1,8 +1,9 @@
 """MCAP bag writer compatible with rosbag2 Jazzy (profile "ros2", CDR messages).
 
-Pure Python (``mcap`` + ``mcap_ros2``), no rclpy: the simulator writes bags
-offline and the ROS node uses the same class with rclpy-serialized bytes
-(:meth:`BagWriter.write_raw`).
+Pure Python (``mcap`` and the CDR serializer of :mod:`.cdr`), no rclpy: the
+offline run and the ROS node both write the CDR bytes of ``mta_sim_ros.messages``
+(:meth:`BagWriter.write_raw`); :meth:`BagWriter.write` encodes plain dicts
+with the same serializer.
 
 Crash safety (SIGKILL): messages are collected in a chunk that is compressed
 and written when its *uncompressed* size exceeds ``chunk_size``; every
@@ -28,10 +29,9 @@ from mcap.exceptions import McapError
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
-from mcap_ros2 import __version__ as _mcap_ros2_version
-from mcap_ros2._dynamic import serialize_dynamic
 
 from .. import __version__ as _package_version
+from .cdr import EncodeError, MessageEncoder
 from .schemas import BagError, message_definition
 from .schemas import schema_name as _schema_name
 
@@ -39,8 +39,7 @@ from .schemas import schema_name as _schema_name
 DEFAULT_CHUNK_SIZE = 64 * 1024
 
 #: Library string stored in the MCAP header.
-LIBRARY = (f"mta_sim_ros/{_package_version} mcap-python/{_mcap_version} "
-           f"mcap-ros2-support/{_mcap_ros2_version}")
+LIBRARY = f"mta_sim_ros/{_package_version} mcap-python/{_mcap_version}"
 
 _COMPRESSION = {
     "zstd": CompressionType.ZSTD,
@@ -225,20 +224,20 @@ class BagWriter:
               publish_time_ns: int | None = None, sequence: int = 0) -> None:
         """Serialize a plain-Python message (nested dicts/lists) to CDR and write it.
 
-        Missing fields are written as zero / empty, as mcap_ros2 does.
+        Missing fields are written with their defaults (zero / empty unless
+        the definition says otherwise), as mcap_ros2 does; see :mod:`.cdr`.
 
         Raises:
             BagError: unknown topic, message not serializable with the topic's
-                type (the writer stays usable), or I/O failure.
+                type (names the field; the writer stays usable), or I/O failure.
         """
         channel = self._channel(topic)
         try:
             data = self._encoder(channel)(message)
         except BagError:
             raise
-        except Exception as exc:  # mcap_ros2 raises ValueError, TypeError, struct.error, ...
-            raise BagError(f"{self.path}: cannot serialize message for {topic} "
-                           f"as {channel.schema_name}: {exc!r}") from exc
+        except EncodeError as exc:
+            raise BagError(f"{self.path}: cannot serialize message for {topic}: {exc}") from exc
         self.write_raw(topic, data, log_time_ns, publish_time_ns, sequence)
 
     def write_raw(self, topic: str, data: bytes, log_time_ns: int,
@@ -320,8 +319,10 @@ class BagWriter:
                     or channel.message_encoding != MessageEncoding.CDR):
                 raise BagError(f"{self.path}: cannot encode dict messages for schema encoding "
                                f"{channel.schema_encoding!r} / {channel.message_encoding!r}")
-            encoders = serialize_dynamic(channel.schema_name, channel.schema_data.decode())
-            channel.encoder = encoders[channel.schema_name]
+            try:
+                channel.encoder = MessageEncoder(channel.schema_name, channel.schema_data.decode()).encode
+            except EncodeError as exc:
+                raise BagError(f"{self.path}: cannot encode for schema {channel.schema_name}: {exc}") from exc
         return channel.encoder
 
     def _io(self, action: str, operation: Callable[[], Any]) -> None:

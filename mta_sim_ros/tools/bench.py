@@ -92,7 +92,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     add_kinks(sub)
 
-    t = sub.add_parser("tick-parts", help="the node tick's parts, old way against new, side by side offline",
+    t = sub.add_parser("tick-parts", help="the node tick's parts in two forms (generic against template, Python against compiled), side by side offline",
                        description=tick_parts_main.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
     t.add_argument("--rounds", type=int, default=30, help="rounds; each times every variant once (default 30)")
@@ -271,7 +271,7 @@ def instrumented_node_main(argv: list[str]) -> int:
     from rclpy.publisher import Publisher
 
     from .. import node as node_module
-    from .. import ros_msgs
+    from ..messages import OutputEncoder, TrainMarkers
     from ..recorder import RunRecorder
     from ..sim import Simulation
 
@@ -293,8 +293,8 @@ def instrumented_node_main(argv: list[str]) -> int:
 
     Simulation.advance = timed("advance", Simulation.advance)
     Simulation.outputs = timed("outputs", Simulation.outputs)
-    ros_msgs.OutputEncoder.encode = timed("encode", ros_msgs.OutputEncoder.encode)
-    ros_msgs.TrainMarkers.encode = timed("markers", ros_msgs.TrainMarkers.encode)
+    OutputEncoder.encode = timed("encode", OutputEncoder.encode)
+    TrainMarkers.encode = timed("markers", TrainMarkers.encode)
     publish, publish_clock = timed("publish", Publisher.publish), timed("publish_clock", Publisher.publish)
     Publisher.publish = lambda self, msg: (publish_clock if self.topic_name == "/clock" else publish)(self, msg)
     RunRecorder.write_batch = timed("bag_write", RunRecorder.write_batch)
@@ -629,19 +629,20 @@ def noise_floor(work_seconds: float, period: float, duration: float, cpu: int) -
 def tick_parts_main(args: argparse.Namespace) -> int:
     """``mta bench tick-parts``: the parts of the node's tick that exist in two forms, timed side by
     side in one process, offline, calls back to back, on a state of the scene after 3 s of its own
-    inputs: the five output messages built as rclpy objects and serialized against
-    ``ros_msgs.OutputEncoder.encode`` (CDR templates); the MarkerArray redrawn and serialized
-    against ``TrainMarkers.encode``; ``sim.evaluate_outputs`` (Python) against
-    ``Simulation.outputs`` on the compiled path. The variants alternate within each round, so
-    both see the same machine; printed: the median over rounds of the mean time per call, and the
-    ratio. No file is written."""
+    inputs: the five output messages built as plain dicts (``topics.output_messages``) and encoded
+    by the generic serializer (``bag.cdr.encode``) against ``messages.OutputEncoder.encode`` (CDR
+    templates; the same bytes); the MarkerArray likewise (``messages.train_markers`` encoded
+    against ``TrainMarkers.encode``); ``sim.evaluate_outputs`` (Python) against
+    ``Simulation.outputs`` on the compiled path (the tick's form second). The variants alternate
+    within each round, so both see the same machine; printed: the median over rounds of the mean
+    time per call, and the ratio. No file is written."""
     import statistics as stats
 
-    from rclpy.serialization import serialize_message
-
-    from .. import ros_msgs
+    from ..bag.cdr import encode
+    from ..messages import MARKERS_TYPE, OutputEncoder, TrainMarkers, train_markers
     from ..model.loader import load_scene
     from ..sim import Simulation, evaluate_outputs
+    from ..topics import TOPICS, output_messages
 
     scene = load_scene(resolve_scene(args.scene))
     sim = Simulation(scene, fidelity="dynamic")
@@ -649,17 +650,18 @@ def tick_parts_main(args: argparse.Namespace) -> int:
         sim.advance(*sim.scheduled_inputs(sim.t))
     out = sim.outputs()
     names = [c.name for c in scene.train.carts]
-    encoder, markers = ros_msgs.OutputEncoder(names), ros_msgs.TrainMarkers(scene.train)
+    encoder, markers = OutputEncoder(names), TrainMarkers(scene.train)
     pairs = {
         "five output messages": (
-            lambda: [serialize_message(m) for m in ros_msgs.output_messages(out, names).values()],
+            lambda: [encode(TOPICS[t], m) for t, m in output_messages(out, names).items()],
             lambda: encoder.encode(out)),
-        "markers (MarkerArray)": (lambda: serialize_message(markers.update(out)), lambda: markers.encode(out)),
+        "markers (MarkerArray)": (lambda: encode(MARKERS_TYPE, train_markers(out, scene.train)),
+                                  lambda: markers.encode(out)),
         "outputs": (lambda: evaluate_outputs(sim.model, sim.t, sim.y, sim.command, sim.v_set), sim.outputs),
     }
     print(f"mta bench tick-parts: scene '{scene.name}', {len(names)} carts, outputs path: {sim.compiled_note}; "
           f"{args.rounds} rounds x {args.calls} calls per variant")
-    print(f"  {'part':<24} {'old, us':>9} {'new, us':>9} {'old / new':>10}")
+    print(f"  {'part':<24} {'general, us':>12} {'tick, us':>9} {'general / tick':>15}")
     for label, variants in pairs.items():
         times: list[list[float]] = [[], []]
         for _ in range(args.rounds):
@@ -669,7 +671,7 @@ def tick_parts_main(args: argparse.Namespace) -> int:
                     fn()
                 times[i].append((time.perf_counter() - t0) / args.calls)
         old, new = stats.median(times[0]), stats.median(times[1])
-        print(f"  {label:<24} {old * 1e6:9.1f} {new * 1e6:9.1f} {old / new:10.1f}")
+        print(f"  {label:<24} {old * 1e6:12.1f} {new * 1e6:9.1f} {old / new:15.1f}")
     return 0
 
 

@@ -5,8 +5,8 @@ DDS): measurements, not tests. Prints progress to stderr; writes Markdown and PN
 (a) Tick compute time against n carts (1..100) and publish rate (50, 100, 200 Hz): the work of
     the node's tick (``session.RunSession.tick``) without the middleware: ``Simulation.advance`` (rk4, step
     0.01 s, plus the validity check), ``Simulation.outputs`` (compiled, as ``evaluate_outputs``),
-    ``ros_msgs.OutputEncoder.encode`` (the messages' CDR bytes from templates),
-    ``ros_msgs.TrainMarkers.encode`` every publish_rate / 10 Hz ticks, and the bag write of those
+    ``messages.OutputEncoder.encode`` (the messages' CDR bytes from templates),
+    ``messages.TrainMarkers.encode`` every publish_rate / 10 Hz ticks, and the bag write of those
     bytes (``RunRecorder.write``, MCAP, on the tick's thread, where the node now hands it to a
     thread of its own) together with the two commands a steering player sends per tick (serialized
     by rclpy and recorded as the node records them). Not included: ``Publisher.publish`` (DDS) and
@@ -148,7 +148,7 @@ class Ticker:
         from rclpy.serialization import serialize_message
         from std_msgs.msg import Float64
 
-        from .. import ros_msgs
+        from ..messages import OutputEncoder, TrainMarkers
         from ..recorder import RunRecorder
         from ..sim import Simulation
         from ..topics import DIAGNOSTICS_TYPE, MARKERS_TYPE, TOPICS, qualified
@@ -159,8 +159,8 @@ class Ticker:
         self.names = [c.name for c in self.train.carts]
         self.marker_every = max(1, round(rate / MARKER_RATE))
         self.since_markers = 0
-        self.encoder = ros_msgs.OutputEncoder(self.names, "map")  # CDR templates, as the node's tick
-        self.markers = ros_msgs.TrainMarkers(self.train, "map")
+        self.encoder = OutputEncoder(self.names, "map")  # CDR templates, as the node's tick
+        self.markers = TrainMarkers(self.train, "map")
         self.serialize, self.Float64 = serialize_message, Float64
         self.recorder = None
         if bag_dir is not None:

@@ -16,10 +16,11 @@ from pathlib import Path
 from .. import __version__
 from ..bag import BagError, BagWriter
 from ..fidelity import LEVELS, choose
+from ..messages import CommandEncoder, OutputEncoder
 from ..model.loader import SpecError, load_scene
 from ..sim import run_scene
 from ..summary import RunSummary
-from ..topics import TOPICS, command_messages, output_messages, qualified
+from ..topics import TOPICS, qualified
 
 EXIT_STOPPED = 3
 
@@ -111,14 +112,15 @@ def main(args: argparse.Namespace) -> int:
         with BagWriter(str(bag_path), metadata={"mta_sim_ros": run_metadata(scene, options)}) as bag:
             for topic, type_name in TOPICS.items():
                 bag.add_topic(qualified(topic), type_name)
+            outputs, commands = OutputEncoder(cart_names, args.frame_id), CommandEncoder()  # the node's encoders
 
             def record(out):
                 stamp_ns = round(out.t * 1e9)
-                for topic, msg in output_messages(out, cart_names, args.frame_id).items():
-                    bag.write(qualified(topic), msg, stamp_ns)
+                for topic, data in outputs.encode(out).items():
+                    bag.write_raw(qualified(topic), data, stamp_ns)
                 if out.t > 0:  # the inputs held over the tick that ended here, stamped at its start
-                    for topic, msg in command_messages(out).items():
-                        bag.write(qualified(topic), msg, round((out.t - tick) * 1e9))
+                    for topic, data in commands.encode(out).items():
+                        bag.write_raw(qualified(topic), data, round((out.t - tick) * 1e9))
                 summary.add(out)
                 progress.update(out.t)
 
