@@ -16,8 +16,8 @@ import numpy as np
 
 from .fidelity import Choice, choose, make_model
 from .integrate import IntegrationError, make_stepper
-from .integrate.stability import UnstableStepError, stable_step
-from .integrate.steppers import FixedStep, Held
+from .integrate.stability import UnstableStepError, resolved_step, stable_step
+from .integrate.steppers import FIXED_METHODS, FixedStep, Held
 from .model import jit, kernel
 from .model.dynamics import Model
 from .model.guards import ModelValidityError, check_state, fast_modes
@@ -134,14 +134,23 @@ class Simulation:
         self.split_kinks = integ.split_kinks if split_kinks is None else bool(split_kinks)
         make_stepper(self.method, self.step, self.rtol, self.atol)  # a bad method fails here, not at reset
         self.tick = 1.0 / (rate or scene.publish_rate)
-        self.stepper_step, self.stability_note = stable_step(self.method, self.step, self.tick,
-                                                             fast_modes(scene.train))
+        self.compiled, self.compiled_note = kernel_path(self.model, compiled)
+        # with kinks split, a kernel model's fixed-step tick takes the actuator in closed form
+        # (kernel.rk_step): its fast mode then limits neither stability nor accuracy, but the step
+        # must resolve its time constant (stability.resolved_step)
+        self.exact_actuator = self.split_kinks and self.compiled is not None and self.method in FIXED_METHODS
+        self.stepper_step, self.stability_note = stable_step(
+            self.method, self.step, self.tick, fast_modes(scene.train, actuator=not self.exact_actuator))
         if self.stability_note:
             if not substep:
                 raise UnstableStepError(self.stability_note.replace(
                     "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
             warnings.warn(self.stability_note, RuntimeWarning, stacklevel=2)
-        self.compiled, self.compiled_note = kernel_path(self.model, compiled)
+        if self.exact_actuator:
+            self.stepper_step, resolution = resolved_step(self.stepper_step, self.tick,
+                                                          scene.train.actuator.time_constant)
+            if resolution:
+                self.stability_note = "; ".join(filter(None, (self.stability_note, resolution)))
         # the right-hand side of the adaptive methods and of the slip level
         if self.compiled is False:
             P = self.model.P

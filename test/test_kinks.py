@@ -158,8 +158,9 @@ def test_every_fixed_method_keeps_its_order_across_kinks(method, reference):
     split = [distance(hitch_points(kinks_scene(), method=method, step=h)[0], reference) for h in (0.01, 0.005)]
     across = distance(hitch_points(kinks_scene(), method=method, split_kinks=False)[0], reference)
     assert math.log2(split[0] / split[1]) == pytest.approx(order, abs=0.25), split
-    assert split[0] <= across * 1.01  # never worse; for order >= 3, by more than an order of magnitude
-    if order >= 3:
+    if order >= 2:  # (Euler's own first-order error hides the kinks)
+        assert split[0] < across, (split[0], across)
+    if order >= 3:  # by more than an order of magnitude
         assert split[0] < across / 20, (split[0], across)
 
 
@@ -183,10 +184,21 @@ def test_adaptive_error_control_no_longer_accepts_a_step_across_a_kink(method, r
     assert split < across / 100 and split < 1e-9, (split, across)
 
 
-def test_without_kinks_splitting_changes_nothing_to_the_last_bit():
-    """slalom.yaml: the governor never saturates and the rate limit never engages."""
-    scene = dataclasses.replace(load_scene(REPO / "config" / "scenes" / "slalom.yaml"), duration=20.0)
-    a, sim_a = hitch_points(scene, split_kinks=True)
-    b, sim_b = hitch_points(scene, split_kinks=False)
-    assert sim_a.kinks == 0
-    np.testing.assert_array_equal(a, b)
+def test_the_steering_is_the_actuators_closed_form():
+    """With kinks split, psi_1 after every tick is the actuator's exact motion (kernel.actuator_psi)
+    from the tick's start, not a stepped approximation of it: equal to an independent DOP853
+    solution of psi_1' = actuator(psi_1, command) alone (actuator.py) at rtol 1e-12."""
+    from scipy.integrate import solve_ivp
+
+    scene = kinks_scene(duration=8.0)
+    sim = Simulation(scene, fidelity="dynamic")
+    act, i = scene.train.actuator, sim.model.layout.steering
+    worst = 0.0
+    for _ in range(int(scene.duration / sim.tick)):
+        command, v_set = sim.scheduled_inputs(sim.t)
+        psi0 = sim.y[i]
+        exact = solve_ivp(lambda t, p: [steering_rate(act, p[0], command)], (0.0, sim.tick), [psi0],
+                          method="DOP853", rtol=1e-12, atol=1e-14).y[0, -1]
+        sim.advance(command, v_set)
+        worst = max(worst, abs(sim.y[i] - exact))
+    assert worst < 1e-11, worst

@@ -1,9 +1,11 @@
 """Unstable integrator configurations never give garbage, and the accuracy benchmark's metrics.
 
-The stiff-actuator scene (steering time constant tau = 5 ms) with rk4 at a 40 ms step is past
-rk4's real-axis stability limit h < 2.785 tau: the bare stepper's steering mode grows every step.
-A Simulation either refuses it (substep=False) with an error naming method, step and reason, or
-sub-steps and stays with a tight reference.
+The stiff-actuator scene (steering time constant tau = 5 ms) with rk4 at a 40 ms step, the
+actuator stepped like the rest (split_kinks off), is past rk4's real-axis stability limit
+h < 2.785 tau: the bare stepper's steering mode grows every step. A Simulation either refuses it
+(substep=False) with an error naming method, step and reason, or sub-steps and stays with a tight
+reference. With kinks split (the default) the steering follows the actuator's closed form: its
+mode is not stepped, so it limits no step, and the step is only cut to resolve tau.
 """
 from __future__ import annotations
 
@@ -107,15 +109,26 @@ def test_stable_configurations_are_left_alone(stiff):
 def test_a_stable_configuration_runs_with_its_own_step(stiff):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no stability warning
-        sim = simulation(stiff, method="rk4", step=0.01, rate=100.0)
+        sim = simulation(stiff, method="rk4", step=0.01, rate=100.0, split_kinks=False)
     assert sim.stability_note is None and sim.stepper.step == 0.01
+
+
+def test_the_actuator_in_closed_form_limits_no_step(stiff, reference):
+    """rk4 at 40 ms with kinks split: no stability problem to refuse (substep=False runs), the
+    step cut to tau / 2 only to resolve the actuator's motion, and the run on the reference."""
+    ref_sim, ref = reference
+    sim = simulation(stiff, method="rk4", step=0.04, rate=RATE, substep=False)
+    assert sim.exact_actuator and sim.stepper_step == pytest.approx(stiff.train.actuator.time_constant / 2)
+    assert "time constant" in sim.stability_note and "unstable" not in sim.stability_note
+    Y = held_run(sim, len(ref))
+    assert position_error(points(sim, Y), points(ref_sim, ref)) < 1e-6
 
 
 # -- the unstable configuration -------------------------------------------------------------------
 def test_the_bare_stepper_is_garbage_there(stiff, reference):
     """The premise: rk4 at 40 ms (h / tau = 8) without the guard leaves the solution."""
     ref_sim, ref = reference
-    Y = bare_run(stiff, "rk4", 0.04, len(ref))
+    Y = bare_run(stiff, "rk4", 0.04, len(ref))  # the actuator stepped like the rest
     L = ref_sim.model.layout
     bad_steering = np.max(np.abs(Y[:, L.steering] - ref[:, L.steering]))
     assert not np.all(np.isfinite(Y)) or bad_steering > 0.01
@@ -123,7 +136,7 @@ def test_the_bare_stepper_is_garbage_there(stiff, reference):
 
 def test_unstable_step_is_refused_with_method_step_and_reason(stiff):
     with pytest.raises(UnstableStepError) as info:
-        simulation(stiff, method="rk4", step=0.04, rate=RATE, substep=False)
+        simulation(stiff, method="rk4", step=0.04, rate=RATE, substep=False, split_kinks=False)
     text = str(info.value)
     for word in ("rk4", "0.04 s", "2.785", "steering actuator", "0.005", "unstable"):
         assert word in text, (word, text)
@@ -134,7 +147,7 @@ def test_unstable_step_is_sub_stepped_to_the_reference(stiff, reference):
     of the reference and the steering follows it (the bare stepper's chatter is gone)."""
     ref_sim, ref = reference
     with pytest.warns(RuntimeWarning, match=r"rk4 .*unstable.*sub-stepping"):
-        sim = simulation(stiff, method="rk4", step=0.04, rate=RATE)
+        sim = simulation(stiff, method="rk4", step=0.04, rate=RATE, split_kinks=False)
     h = effective_step(sim.stepper.step, sim.tick)
     assert h * max(fast_modes(stiff.train))[0] < REAL_AXIS_LIMIT["rk4"]
     Y = held_run(sim, len(ref))

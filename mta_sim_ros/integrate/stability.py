@@ -56,3 +56,22 @@ def stable_step(method: str, step: float, tick: float, modes, safety: float = SA
             f"= {limit:.4g} s (its real-axis stability limit); sub-stepping at "
             f"{effective_step(new, tick):.4g} s ({math.ceil(tick / new - 1e-9)} steps per {tick:.4g} s tick)")
     return new, note
+
+
+#: steps per actuator time constant when the steering follows the actuator's closed form: the train
+#: is stepped under psi_1(t), which moves like exp(-t / tau) after each command, and the quadrature
+#: of that needs the step to resolve tau (docs/benchmarks/kinks.md measures the error against it)
+RESOLUTION = 2
+
+
+def resolved_step(step: float, tick: float, time_constant: float, per: int = RESOLUTION):
+    """(step to use, note): at most time_constant / ``per``, so that the stepped train follows the
+    actuator's exponential to the accuracy of the method; the note says why (None if unchanged)."""
+    limit = time_constant / per
+    if effective_step(step, tick) <= limit * (1 + 1e-12):
+        return step, None
+    note = (f"step {effective_step(step, tick):.4g} s is longer than the steering actuator's time constant "
+            f"{time_constant:g} s / {per}; sub-stepping at {effective_step(limit, tick):.4g} s "
+            f"({math.ceil(tick / limit - 1e-9)} steps per {tick:.4g} s tick) so that the train follows the "
+            f"actuator's motion")
+    return limit, note

@@ -72,17 +72,18 @@ def steady_turn_note(train, steering: float) -> str:
     return ""
 
 
-def fast_modes(train) -> list[tuple[float, str]]:
+def fast_modes(train, actuator: bool = True) -> list[tuple[float, str]]:
     """The model's fast decaying modes that hold everywhere along a run: (rate r, 1/s; what it is).
 
     Each is a pole -r of a linear part of the equations (``integrate.stability`` turns them into
-    step limits): the steering actuator's lag 1/time_constant; the prescribed-speed lag
+    step limits): the steering actuator's lag 1/time_constant (unless ``actuator`` is False: a
+    stepper that takes the actuator's closed form does not step that mode); the prescribed-speed lag
     1/response_time; the governor's proportional loop kp / sum m_k (the mass on a straight line)
     and its anti-windup 1/windup_time. Not included: the resistance smoothing through V = 0,
     (sum F_Bk) / (M smoothing_speed), which is fast only while |V| is within a few smoothing
     speeds of zero."""
     act = train.actuator
-    modes = [(1.0 / act.time_constant, f"the steering actuator (time constant {act.time_constant:g} s)")]
+    modes = [(1.0 / act.time_constant, f"the steering actuator (time constant {act.time_constant:g} s)")] if actuator else []
     tr = train.traction
     if tr.law == "prescribed_speed":
         modes.append((1.0 / tr.response_time, f"the prescribed-speed lag (response_time {tr.response_time:g} s)"))

@@ -494,6 +494,21 @@ def actuator_release(P, psi1, command):
 
 
 @jitable
+def actuator_psi(P, psi0, command, release, T):
+    """psi_1 at T s into a tick that started at psi0, the command held: the actuator's closed-form
+    motion (rate-limited at +-max_rate until ``release``, ``actuator_release``; then the first-order
+    lag, exp(-t / tau) towards the clipped command)."""
+    max_angle, max_rate, tau = P[H.max_angle], P[H.max_rate], P[H.time_constant]
+    target = pymin(pymax(command, -max_angle), max_angle)
+    if math.isinf(release):
+        return target + (psi0 - target) * math.exp(-T / tau)
+    sign = 1.0 if target > psi0 else -1.0
+    if T <= release:
+        return psi0 + sign * max_rate * T
+    return target - sign * tau * max_rate * math.exp(-(T - release) / tau)
+
+
+@jitable
 def no_switches(P, y, command, v_set, g):
     """``switches`` for a right-hand side without known switches."""
     return 0
@@ -514,8 +529,14 @@ def model_rhs(P, t, y, command, v_set, dy, rec, mode):
 
 
 @jitable
-def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode):
+def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode, lag):
     """One step of length h of the explicit tableau T from y into ``out``; returns the stages.
+
+    ``lag`` = (on, psi0, command, release, T0): when on, the steering angle psi_1 is not stepped
+    but taken from the actuator's closed form (``actuator_psi``) at each stage's time, T0 + c_i h
+    after the tick's start: the actuator is a first-order lag of its own (nothing feeds back into
+    it), so the train is stepped under its exact steering, and the actuator's fast pole -1/tau
+    limits neither the accuracy nor the stability of the step.
 
     T (``integrate.tableau.Tableau.packed``) holds the tableau as the classic methods are
     printed, integer numerators over a common denominator per row: row i < s is (d_i, a_i0 ..
@@ -525,6 +546,8 @@ def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode):
     last bit."""
     stages = T.shape[0] - 2
     size = y.shape[0]
+    exact = lag[0] != 0.0
+    ip = int(P[H.n]) + 2 if exact else 0
     f(P, t, y, command, v_set, K[0], rec, mode)
     for i in range(1, stages + 1):
         scale = h / T[i, 0]
@@ -543,7 +566,11 @@ def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode):
             else:
                 out[m] = value
         if i < stages:
+            if exact:
+                tmp[ip] = actuator_psi(P, lag[1], lag[2], lag[3], lag[4] + T[stages + 1, 1 + i] * h)
             f(P, t + T[stages + 1, 1 + i] * h, tmp, command, v_set, K[i], rec, mode)
+    if exact:
+        out[ip] = actuator_psi(P, lag[1], lag[2], lag[3], lag[4] + h)
     return stages
 
 
@@ -587,7 +614,7 @@ def illinois_update(lo, hi, f_lo, f_hi, side, tau, f_tau, far):
 
 
 @jitable
-def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, rec, mode, g):
+def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, rec, mode, lag, g):
     """The step length in (0, h] at which switching function j changes sign along this method's
     step from y with the branches ``mode`` held (the Illinois method on tau -> g_j(step(y, tau))).
     Returns (tau on the far side of the switch, right-hand sides evaluated)."""
@@ -600,7 +627,7 @@ def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, 
         if hi - lo <= 4e-16 * h + 1e-300:
             break
         tau = illinois_point(lo, hi, f_lo, f_hi)
-        nfev += rk_step(f, P, T, t, y, command, v_set, tau, K, tmp, trial, rec, mode)
+        nfev += rk_step(f, P, T, t, y, command, v_set, tau, K, tmp, trial, rec, mode, lag)
         sw(P, trial, command, v_set, g)
         lo, hi, f_lo, f_hi, side = illinois_update(lo, hi, f_lo, f_hi, side, tau, g[j], far)
     return hi, nfev
@@ -616,8 +643,9 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     finished from it on the new branch: at the actuator's release (closed form,
     ``actuator_release``) and where a switching function (``sw``) changes sign (located along the
     held-branch step, ``_locate``). Each piece then integrates a smooth right-hand side, and the
-    method keeps its order. Without ``split`` every law follows the state (the kinks are
-    stepped across)."""
+    method keeps its order. A kernel model's steering angle then follows the actuator's closed
+    form (``actuator_psi``, see ``rk_step``). Without ``split`` every law follows the state and
+    psi_1 is stepped like the rest (the code before kink splitting, bit for bit)."""
     size = y0.shape[0]
     K = np.empty((T.shape[0] - 2, size))
     tmp = np.empty(size)
@@ -627,10 +655,11 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     count = max(1, math.ceil((t1 - t0) / max_step - 1e-9))
     h = (t1 - t0) / count
     nfev = 0
+    lag = np.zeros(5)
     if not split:
         natural = no_mode()
         for i in range(count):
-            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec, natural)
+            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec, natural, lag)
             y, y1 = y1, y
         return y, nfev, 0
     n = int(P[H.n]) if P.shape[0] else 0
@@ -642,6 +671,8 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     kinks = 0
     release = actuator_release(P, y[n + 2], command) if P.shape[0] else math.inf
     released = not EDGE * h < release < math.inf  # not rate-limited, or letting go at the start
+    if P.shape[0]:  # a kernel model: its actuator in closed form (rk_step)
+        lag[0], lag[1], lag[2], lag[3] = 1.0, y[n + 2], command, release
     m = sw(P, y, command, v_set, g0)
     branches(g0, m, mode)
     for i in range(count):
@@ -659,18 +690,19 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
                 elif until < left - EDGE * h:
                     length, at_release = until, True
             mode[0] = LOW if released else HIGH
-            nfev += rk_step(f, P, T, ts + done, y, command, v_set, length, K, tmp, y1, rec, mode)
+            lag[4] = i * h + done
+            nfev += rk_step(f, P, T, ts + done, y, command, v_set, length, K, tmp, y1, rec, mode, lag)
             sw(P, y1, command, v_set, g1)
             if m and splits < MAX_SPLITS and _changed(g0, g1, m, changed):
                 tau = length
                 for j in range(m):
                     if changed[j]:
                         tj, used = _locate(f, sw, P, T, ts + done, y, command, v_set, length, j, g0[j], g1[j],
-                                           K, tmp, trial, rec, mode, g)
+                                           K, tmp, trial, rec, mode, lag, g)
                         nfev += used
                         tau = pymin(tau, tj)
                 if EDGE * h < tau < length - EDGE * h:
-                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, tau, K, tmp, y1, rec, mode)
+                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, tau, K, tmp, y1, rec, mode, lag)
                     y, y1 = y1, y
                     sw(P, y, command, v_set, g0)
                     branches(g0, m, mode)
