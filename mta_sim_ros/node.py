@@ -54,7 +54,8 @@ def descriptor(p: Param) -> ParameterDescriptor:
 
 
 class SimNode(Node):
-    def __init__(self, **kwargs):
+    def __init__(self, profile=None, **kwargs):
+        """``profile``: a session.TickProfile told where each tick's time goes (benchmarks)."""
         super().__init__("mta_sim", **kwargs)
         for p in PARAMS:
             try:
@@ -64,8 +65,8 @@ class SimNode(Node):
         cfg = {p.name: self.get_parameter(p.name).value for p in PARAMS}
         self.pubs = {topic: self.create_publisher(ros_msgs.message_class(type_name), topic, QOS)
                      for topic, type_name in BAG_TOPICS.items() if topic not in (*COMMAND_TOPICS, WATCHDOG_TOPIC)}
-        self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish,
-                                  log=self.get_logger(), name=self.get_name(), namespace=self.get_namespace())
+        self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish, log=self.get_logger(),
+                                  name=self.get_name(), namespace=self.get_namespace(), profile=profile)
         for topic in COMMAND_TOPICS:
             self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data), QOS)
         self.create_service(Trigger, "reset", self._on_reset)
@@ -110,8 +111,9 @@ class SimNode(Node):
         self.session.close()
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry of ``sim_node`` (ros2 run) and ``mta node``: ROS arguments as for any node.
+def main(argv: list[str] | None = None, profile=None) -> int:
+    """Entry of ``sim_node`` (ros2 run) and ``mta node``: ROS arguments as for any node
+    (``profile``: see SimNode).
 
     SIGINT and SIGTERM end the spin loop between callbacks, then the bag is finished and the
     context shut down in that order (rclpy's own handlers would invalidate the context while a
@@ -121,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: stop.append(signum))
     try:
-        node = SimNode()
+        node = SimNode(profile=profile)
     except ConfigError as err:
         print(f"sim_node: {err}", file=sys.stderr)
         rclpy.try_shutdown()

@@ -67,6 +67,18 @@ class Encoders(Protocol):
         """A std_msgs/Float64 (commands and watchdog take-overs, as recorded)."""
 
 
+class TickProfile(Protocol):
+    """Where a tick's time goes (``mta bench realtime --stages``): ``start`` when a tick begins,
+    ``mark(stage)`` as each stage ends (advance, outputs, encode, markers, publish, bag_write),
+    ``done`` when it ends."""
+
+    def start(self) -> None: ...
+
+    def mark(self, stage: str) -> None: ...
+
+    def done(self) -> None: ...
+
+
 class RunSession:
     """One node's runs, one after the other (a reset starts the next), each in its own bag.
 
@@ -76,17 +88,18 @@ class RunSession:
     error (str); ``encoders``: the CDR encoding (messages.Encoders by default); ``name`` and
     ``namespace``: the node's, for /diagnostics and the bag's topic
     names; ``background``: the bag is written on a thread of its own (recorder.py);
-    ``compute_clock`` and ``cpu_clock`` time each tick's work (wall and this thread's CPU)."""
+    ``compute_clock`` and ``cpu_clock`` time each tick's work (wall and this thread's CPU);
+    ``profile`` (a TickProfile) is told where each tick's stages end."""
 
     def __init__(self, cfg: Mapping[str, object], *, clock: Callable[[], float], publish: Callable[[dict], None],
                  log, encoders: Encoders | None = None, name: str = "mta_sim", namespace: str = "/",
                  background: bool = True, compute_clock: Callable[[], float] = time.perf_counter,
-                 cpu_clock: Callable[[], float] = time.thread_time):
+                 cpu_clock: Callable[[], float] = time.thread_time, profile: TickProfile | None = None):
         self.cfg = dict(cfg)
         check_config(self.cfg)
         self.clock, self.publish, self.log, self.name = clock, publish, log, name
         self.enc = encoders if encoders is not None else messages.Encoders()
-        self.compute_clock, self.cpu_clock = compute_clock, cpu_clock
+        self.compute_clock, self.cpu_clock, self.profile = compute_clock, cpu_clock, profile
         try:
             self.scene = load_scene(resolve_config_path(self.cfg["scene_file"]))
         except SpecError as err:
@@ -164,6 +177,9 @@ class RunSession:
         and record one tick. A model error halts the run (logged, ERROR in /diagnostics)."""
         if self.paused or self.halted:
             return
+        profile = self.profile
+        if profile is not None:
+            profile.start()
         started, cpu_started = self.compute_clock(), self.cpu_clock()
         if self.watchdog.update():
             self._record({WATCHDOG_TOPIC: self.enc.float64(self.watchdog.command)})
@@ -174,20 +190,34 @@ class RunSession:
             self.log.error(f"simulation halted (call reset to start again): {err}")
             self.publish_diagnostics()
             return
+        if profile is not None:
+            profile.mark("advance")
         out = self.sim.outputs()
         out.t = self.now
+        if profile is not None:
+            profile.mark("outputs")
         msgs = self.encoder.encode(out)  # CDR bytes: the same bytes go to DDS and to the bag
+        if profile is not None:
+            profile.mark("encode")
         self.ticks_since_markers += 1
         if self.ticks_since_markers >= self.marker_every:
             self.ticks_since_markers = 0
             msgs["markers"] = self.markers.encode(out)
+        if profile is not None:
+            profile.mark("markers")
         self.publish(msgs)
+        if profile is not None:
+            profile.mark("publish")
         if self.recorder is not None and self.recorder.recording:  # the same bytes, to the bag writer's thread
             self.recorder.write_batch(msgs, round(self.now * 1e9))
+        if profile is not None:
+            profile.mark("bag_write")
         cpu = self.cpu_clock() - cpu_started
         period = self.pacing.period
         self.stats.record(self.compute_clock() - started, deadline=period if period > 0 else None)
         self.cpu_stats.record(cpu)
+        if profile is not None:
+            profile.done()
 
     def _record(self, msgs: dict[str, bytes]) -> None:
         """Log messages (topic -> CDR bytes) at the current simulation time. A failure of the

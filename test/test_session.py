@@ -66,14 +66,15 @@ class Log:
 class Run:
     """A RunSession with a fake clock, its log and everything it published (dicts in order)."""
 
-    def __init__(self, tmp_path: Path, **overrides):
+    def __init__(self, tmp_path: Path, profile=None, **overrides):
         cfg = {p.name: p.default for p in PARAMS}
         cfg.update(scene_file=str(SCENE), bag_dir=str(tmp_path / "bags"), publish_rate=RATE, watchdog_timeout=0.0)
         cfg.update(overrides)
         self.clock, self.log, self.published = FakeClock(), Log(), []
         self.bag_dir = Path(cfg["bag_dir"])
         self.s = RunSession(cfg, clock=self.clock, publish=self.published.append,
-                            log=self.log, background=False, compute_clock=self.clock, cpu_clock=self.clock)
+                            log=self.log, background=False, compute_clock=self.clock, cpu_clock=self.clock,
+                            profile=profile)
 
     def ticks(self, n: int, wall: float = TICK) -> None:
         """n firings of the tick timer, ``wall`` seconds apart."""
@@ -494,3 +495,30 @@ def test_the_session_does_not_import_ros():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_a_tick_profile_hears_every_stage_of_every_tick_in_order(tmp_path):
+    """What ``mta bench realtime --stages`` times: start, the six stages, done, once per tick; the
+    markers stage every tick (it is empty when no markers are due), nothing while paused."""
+    class Profile:
+        def __init__(self):
+            self.events = []
+
+        def start(self):
+            self.events.append("start")
+
+        def mark(self, stage):
+            self.events.append(stage)
+
+        def done(self):
+            self.events.append("done")
+
+    profile = Profile()
+    r = Run(tmp_path, profile=profile)
+    r.ticks(3)
+    one = ["start", "advance", "outputs", "encode", "markers", "publish", "bag_write", "done"]
+    assert profile.events == one * 3
+    r.s.pause(True)
+    r.ticks(2)
+    assert profile.events == one * 3
+    r.s.close()
