@@ -13,7 +13,7 @@ Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /
     publishes   hitch_poses, cart_velocities, traction_power, applied_steering (see topics.py),
                 markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz)
     services    reset (std_srvs/Trigger), pause (std_srvs/SetBool)
-QoS: one profile for everything, ``QOS``: reliable, volatile, keep last 10.
+QoS: one profile for everything, ``ros_msgs.QOS``: reliable, volatile, keep last 10.
 """
 from __future__ import annotations
 
@@ -27,19 +27,17 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from . import ros_msgs
+from .ros_msgs import QOS
 from .params import PARAMS, ConfigError, Param
 from .session import RunSession
 from .timing import reserve_cpu
 from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC
 
-QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                 durability=DurabilityPolicy.VOLATILE)
 
 
 def descriptor(p: Param) -> ParameterDescriptor:

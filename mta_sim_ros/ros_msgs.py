@@ -1,4 +1,5 @@
-"""The rclpy message classes of the project's type names, for creating publishers and subscriptions.
+"""What the package's ROS nodes share: the one QoS profile, and the rclpy message classes of the
+project's type names (for creating publishers and subscriptions).
 
 The only part of the message layer that needs rclpy: every message the node publishes or records
 is encoded ROS-free by :mod:`mta_sim_ros.messages` and handed to rclpy as CDR bytes.
@@ -7,7 +8,14 @@ from __future__ import annotations
 
 import importlib
 
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
 from .bag.schemas import split_type_name
+
+#: The QoS of every topic the simulator, its players and controllers use: reliable, volatile, keep
+#: last 10 (rclpy's default publisher profile; the bag records it as offered_qos_profiles).
+QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                 durability=DurabilityPolicy.VOLATILE)
 
 
 def message_class(type_name: str) -> type:

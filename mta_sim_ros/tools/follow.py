@@ -28,7 +28,7 @@ from std_msgs.msg import Float64
 
 from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
-from ..node import QOS
+from ..ros_msgs import QOS
 from ..paths import field_path, lateral_error
 from .maneuver import spin_until_done
 

@@ -23,7 +23,7 @@ from std_msgs.msg import Float64
 from ..model import maneuvers
 from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
-from ..node import QOS
+from ..ros_msgs import QOS
 from ..sim import speed_setpoint, table_value
 
 

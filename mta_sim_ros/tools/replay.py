@@ -113,7 +113,7 @@ def parse_qos(metadata: dict[str, str]):
     import yaml
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    from ..node import QOS
+    from ..ros_msgs import QOS
 
     try:
         offered = yaml.safe_load(metadata.get("offered_qos_profiles", "") or "null")
