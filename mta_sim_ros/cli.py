@@ -37,8 +37,14 @@ def node_main(args: argparse.Namespace) -> int:
     return main(["mta_node", "--ros-args", "--params-file", params, *args.ros_args[1:]])
 
 
-def add_tool(sub, name: str, help: str) -> None:
-    """A subcommand implemented by ``mta_sim_ros.tools.<name>`` (its docstring is the description)."""
+def add_tool(sub, name: str, help: str, selected: str | None = None) -> None:
+    """A subcommand implemented by ``mta_sim_ros.tools.<name>`` (its docstring is the description).
+
+    The module is imported only when it is the ``selected`` command: the ROS tools import rclpy,
+    and ``mta run``, ``check`` or ``analyze`` must work where ROS is not installed."""
+    if name != selected:
+        sub.add_parser(name, help=help)
+        return
     module = importlib.import_module(f".tools.{name}", __package__)
     p = sub.add_parser(name, help=help, description=module.__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -46,12 +52,18 @@ def add_tool(sub, name: str, help: str) -> None:
     p.set_defaults(func=module.main)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def selected_command(argv: list[str]) -> str | None:
+    """The subcommand named in ``argv`` (its first argument that is not an option), if any."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
+    """The ``mta`` parser; the tool ``selected`` gets its own arguments (see add_tool)."""
 
     parser = argparse.ArgumentParser(prog="mta", description="Multi-element machine-tractor unit simulator (ROS 2).")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    add_tool(sub, "run", "simulate a scene offline, as fast as possible, into an MCAP bag")
+    add_tool(sub, "run", "simulate a scene offline, as fast as possible, into an MCAP bag", selected)
 
     p = sub.add_parser("node", help="the ROS 2 simulator node (as `ros2 run mta_sim_ros sim_node`)",
                        description="Runs the simulator node until SIGINT/SIGTERM. Parameters: config/sim.yaml.")
@@ -59,26 +71,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.epilog = "Further ROS arguments follow --ros-args, e.g. mta node --ros-args -r __ns:=/unit1"
     p.set_defaults(func=node_main)
 
-    add_tool(sub, "maneuver", "a node playing a scene's steering (or a named manoeuvre) on sim time")
+    add_tool(sub, "maneuver", "a node playing a scene's steering (or a named manoeuvre) on sim time", selected)
 
-    add_tool(sub, "follow", "an example controller node: pure pursuit along a field path")
+    add_tool(sub, "follow", "an example controller node: pure pursuit along a field path", selected)
 
     p = sub.add_parser("recover", help="rebuild a readable bag from one cut short (SIGKILL, power loss)")
     p.add_argument("bag", help="the damaged .mcap")
     p.add_argument("-o", "--output", help="where to write (default: <bag>.recovered.mcap)")
     p.set_defaults(func=recover_main)
 
-    add_tool(sub, "replay", "play a bag back over ROS 2 with its timing, or re-simulate it (--resimulate)")
+    add_tool(sub, "replay", "play a bag back over ROS 2 with its timing, or re-simulate it (--resimulate)", selected)
 
-    add_tool(sub, "analyze", "plots, summary and CSV of one bag, or of several compared")
+    add_tool(sub, "analyze", "plots, summary and CSV of one bag, or of several compared", selected)
 
     p = sub.add_parser("check", help="validate train and scene files without running them")
     p.add_argument("files", nargs="+", help="YAML files (config/trains/*.yaml, config/scenes/*.yaml)")
     p.set_defaults(func=check_main)
 
-    add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis")
+    add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis", selected)
 
-    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, tick-parts")
+    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, "
+                           "tick-parts, kinks", selected)
     return parser
 
 
@@ -86,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # everything from --ros-args on belongs to ROS (as for any ROS executable)
     split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
-    args = build_parser().parse_args(argv[:split])
+    args = build_parser(selected_command(argv[:split])).parse_args(argv[:split])
     args.ros_args = argv[split:]
     return args.func(args)
 
