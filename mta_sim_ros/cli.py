@@ -78,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis")
 
-    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, tick-parts")
+    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, tick-parts, kinks")
     return parser
 
 

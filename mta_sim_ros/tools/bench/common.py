@@ -74,6 +74,14 @@ def header_lines(title: str, args) -> list[str]:
     ]
 
 
+def table(rows, header, align: str = "") -> list[str]:
+    """A Markdown table of ``rows`` (cells, any type) under ``header``; ``align``: 'l' or 'r' a
+    column, the last letter for the columns after it (default: every column left)."""
+    marks = ["---:" if a == "r" else "---" for a in align.ljust(len(header), (align or "l")[-1])]
+    return ["| " + " | ".join(header) + " |", "|" + "|".join(marks) + "|",
+            *("| " + " | ".join(str(c) for c in r) + " |" for r in rows)]
+
+
 def write_report(path, lines: list[str]) -> Path:
     """Write a Markdown report (its folder made if needed) and say where."""
     out = Path(path)

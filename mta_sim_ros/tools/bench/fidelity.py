@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import header_lines, write_report
+from .common import header_lines, table, write_report
 
 HELP = "each fidelity level's error against slip and its cost, per scene"
 SCENES = "config/scenes"
@@ -69,12 +69,6 @@ def with_stiffness(scene, factor: float):
     carts = tuple(dataclasses.replace(c, cornering_stiffness=factor * float(r)) for c, r in zip(scene.train.carts, rear))
     # the tractor's front axle takes its cart's value: keep its own default ratio by scaling it too
     return dataclasses.replace(scene, train=dataclasses.replace(scene.train, carts=carts))
-
-
-def table(rows, header) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return lines
 
 
 def slip_eigenvalues(scene, speeds) -> list[tuple[float, float]]:

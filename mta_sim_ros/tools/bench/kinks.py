@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import time
 
-from .common import BENCHMARKS, REPO, header_lines, resolve_scene, write_report
+from .common import BENCHMARKS, REPO, header_lines, resolve_scene, table, write_report
 
 HELP = "every method across the kinks of the right-hand side, split and not"
 REF_TOL = 1e-12
@@ -39,12 +39,7 @@ def kink_table(case) -> list[str]:
     across = case.distance(case.run(method="DOP853", step=case.tick, rtol=REF_TOL, atol=REF_TOL,
                                     split_kinks=False), ref)
     step = case.scene.integrator.step
-    lines = [f"Reference: DOP853 at rtol = atol = {REF_TOL:g}, split at {ref.sim.kinks} kinks; Radau at the same "
-             f"tolerance, also split, agrees to {radau:.2g} m; the same DOP853 stepping across the kinks is "
-             f"{across:.2g} m off it.", "",
-             f"| method | order | across: error at {step:g} s | at {step / 2:g} s | observed order | "
-             f"split: error at {step:g} s | at {step / 2:g} s | observed order | RHS per tick, across / split |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    fixed, adaptive = [], []
     for method, tableau in TABLEAUX.items():
         cells = []
         for split in (False, True):
@@ -52,18 +47,23 @@ def kink_table(case) -> list[str]:
             e = [case.distance(r, ref) for r in runs]
             cells.append((e, runs[0].nfev / case.ticks))
         (ea, na), (es, ns) = cells
-        lines.append(f"| {method} | {tableau.order} | {ea[0]:.2e} | {ea[1]:.2e} | {math.log2(ea[0] / ea[1]):.2f} | "
-                     f"{es[0]:.2e} | {es[1]:.2e} | {math.log2(es[0] / es[1]):.2f} | {na:.2f} / {ns:.2f} |")
-        print(lines[-1], flush=True)
-    lines += ["", f"Adaptive methods at rtol = atol = {ADAPTIVE_TOL:g}, largest step the tick:", "",
-              "| method | across: error | split: error | RHS per tick, across / split |", "|---|---:|---:|---:|"]
+        fixed.append([method, tableau.order, f"{ea[0]:.2e}", f"{ea[1]:.2e}", f"{math.log2(ea[0] / ea[1]):.2f}",
+                      f"{es[0]:.2e}", f"{es[1]:.2e}", f"{math.log2(es[0] / es[1]):.2f}", f"{na:.2f} / {ns:.2f}"])
+        print(*fixed[-1], flush=True)
     for method in ADAPTIVE_METHODS:
         a, s = (case.run(method=method, step=case.tick, rtol=ADAPTIVE_TOL, atol=ADAPTIVE_TOL, split_kinks=split)
                 for split in (False, True))
-        lines.append(f"| {method} | {case.distance(a, ref):.2e} | {case.distance(s, ref):.2e} | "
-                     f"{a.nfev / case.ticks:.1f} / {s.nfev / case.ticks:.1f} |")
-        print(lines[-1], flush=True)
-    return lines
+        adaptive.append([method, f"{case.distance(a, ref):.2e}", f"{case.distance(s, ref):.2e}",
+                         f"{a.nfev / case.ticks:.1f} / {s.nfev / case.ticks:.1f}"])
+        print(*adaptive[-1], flush=True)
+    return [f"Reference: DOP853 at rtol = atol = {REF_TOL:g}, split at {ref.sim.kinks} kinks; Radau at the same "
+            f"tolerance, also split, agrees to {radau:.2g} m; the same DOP853 stepping across the kinks is "
+            f"{across:.2g} m off it.", "",
+            *table(fixed, ["method", "order", f"across: error at {step:g} s", f"at {step / 2:g} s", "observed order",
+                           f"split: error at {step:g} s", f"at {step / 2:g} s", "observed order",
+                           "RHS per tick, across / split"], "lr"),
+            "", f"Adaptive methods at rtol = atol = {ADAPTIVE_TOL:g}, largest step the tick:", "",
+            *table(adaptive, ["method", "across: error", "split: error", "RHS per tick, across / split"], "lr")]
 
 
 def shipped_table() -> list[str]:
@@ -71,18 +71,18 @@ def shipped_table() -> list[str]:
     from ...model.loader import load_scene
     from .runs import Case
 
-    lines = ["| scene | kinks | default | across: error | split: error | within 1e-6 m | CPU per tick, across / split |",
-             "|---|---:|---|---:|---:|---|---:|"]
+    rows = []
     for path in sorted((REPO / "config" / "scenes").glob("*.yaml")):
         case = Case(load_scene(path))
         ref = case.reference(REF_TOL)
         a, b = case.run(split_kinks=False), case.run(split_kinks=True)
         ea, eb = case.distance(a, ref), case.distance(b, ref)
-        lines.append(f"| {path.stem} | {ref.sim.kinks} | {b.sim.method} {b.sim.step:g} s | {ea:.2e} | {eb:.2e} | "
-                     f"{'yes' if eb < TARGET else '**no**'} | {a.cpu / case.ticks * 1e6:.1f} / "
-                     f"{b.cpu / case.ticks * 1e6:.1f} us |")
-        print(lines[-1], flush=True)
-    return lines
+        rows.append([path.stem, ref.sim.kinks, f"{b.sim.method} {b.sim.step:g} s", f"{ea:.2e}", f"{eb:.2e}",
+                     "yes" if eb < TARGET else "**no**",
+                     f"{a.cpu / case.ticks * 1e6:.1f} / {b.cpu / case.ticks * 1e6:.1f} us"])
+        print(*rows[-1], flush=True)
+    return table(rows, ["scene", "kinks", "default", "across: error", "split: error", "within 1e-6 m",
+                        "CPU per tick, across / split"], "lrlrrlr")
 
 
 def main(args) -> int:

@@ -195,7 +195,7 @@ def main(args) -> int:
             refdiff[case.label] = check
     if not results:
         return 1
-    summary = summarize(results, 1.0 / args.rate, bool(jit_note))
+    summary = summarize(results, bool(jit_note))
     figs = {mode: figure(results, mode, out_dir, "rk4" + COMPILED if jit_note else "rk4") for mode in ("node", "free")}
     lines = header_lines("Benchmark: work-precision of the integrators", args)
     lines += report(args, results, refdiff, summary, figs, jit_note, repeats)
@@ -210,9 +210,9 @@ def main(args) -> int:
     return 0
 
 
-def summarize(results: dict, tick: float, compiled: bool) -> dict:
+def summarize(results: dict, compiled: bool) -> dict:
     """Per scene: the node default's row, whether it is on the front, the cheapest method (and
-    the cheapest on the Python kernel) at TARGET error, the peer's cost there, rk4's per-tick cost."""
+    the cheapest on the Python kernel) at TARGET error, the peer's cost there."""
     fixed = fixed_methods()
     methods = fixed + tuple(m + COMPILED for m in fixed) + ADAPTIVE
     default_method = "rk4" + COMPILED if compiled else "rk4"
@@ -231,11 +231,9 @@ def summarize(results: dict, tick: float, compiled: bool) -> dict:
         d = next((r for r in node if r["method"] == default_method and abs(r["step"] - 0.01) < 1e-12), None)
         on_front = None if d is None else not any(r is not d and r["cpu_min"] < d["cpu_min"] and r["pos"] < d["pos"]
                                                   for r in node)
-        per_tick = {m: next((r["cpu_min"] * tick for r in node if r["method"] == m and abs(r["step"] - tick) < 1e-12),
-                            None) for m in ("rk4", "rk4" + COMPILED)}
         summary[label] = dict(default=d, default_method=default_method, on_front=on_front, best=best,
                               best_cost=costs.get(best, math.inf), best_py=best_py,
-                              best_py_cost=python.get(best_py, math.inf), per_tick=per_tick,
+                              best_py_cost=python.get(best_py, math.inf),
                               peer=cost(PEER), free_peer=cost(PEER, [r for r in rows if r["mode"] == "free"]))
     return summary
 
@@ -353,19 +351,6 @@ def report(args, results, refdiff, summary, figs, jit_note, repeats) -> list[str
               "measured points of a curve that bracket it. 'on the front': no other configuration of node mode is "
               "both cheaper and more accurate. 'Python method': the fixed methods on the kernel run as plain Python "
               "(`Simulation(compiled=False)`) and the scipy solvers.", ""]
-    if jit_note:
-        lines += ["## Per tick, side by side", "",
-                  f"CPU time of one {1e3 * tick:g} ms tick of `Simulation.advance` (minimum over the repeats): rk4 "
-                  "with step = the tick compiled and as plain Python, and `solve_ivp(RK45)` per tick at 1e-6 m (the "
-                  "headline table has the equal-error ratios).", "",
-                  "| scene | rk4 compiled (us) | rk4 Python (us) | solve_ivp RK45 at 1e-6 m (us) | solve_ivp / rk4 "
-                  "compiled | rk4 Python / rk4 compiled |", "|---|---:|---:|---:|---:|---:|"]
-        for label, s in summary.items():
-            jt, py = s["per_tick"]["rk4" + COMPILED], s["per_tick"]["rk4"]
-            pe = s["peer"] * tick if s["peer"] else None
-            lines.append(f"| {label} | {num(jt and jt * 1e6, '{:.2f}')} | {num(py and py * 1e6, '{:.1f}')} | "
-                         f"{num(pe and pe * 1e6, '{:.1f}')} | {ratio(pe, jt)} | {ratio(py, jt)} |")
-        lines += ["", f"Compiled kernels: {jit_note}, compiled when a Simulation is built, never in a tick.", ""]
     ratios = [s["peer"] / s["best_cost"] for s in summary.values() if s["peer"] and s["best"]]
     if ratios:
         lines += ["## Reading it", "",
