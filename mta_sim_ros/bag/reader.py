@@ -117,6 +117,7 @@ class _Copier:
     topics: dict[int, str] = field(default_factory=dict)
     messages: Counter = field(default_factory=Counter)
     messages_dropped: int = 0
+    last_log_time: int | None = None  # ns, the latest log time copied
     chunks: int = 0
     chunks_dropped: int = 0
 
@@ -162,6 +163,7 @@ class _Copier:
         self.out.write_raw(topic, message.data, message.log_time, message.publish_time,
                            message.sequence)
         self.messages[topic] += 1
+        self.last_log_time = max(message.log_time, self.last_log_time or 0)
 
 
 class PathRefused(BagError):
@@ -219,7 +221,8 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
     Returns:
         ``{"messages": {topic: n}, "total_messages": n, "chunks": n_chunks_copied,
         "chunks_dropped": n, "messages_dropped": n_without_channel,
-        "bytes_dropped": n_unparsed_tail_bytes, "complete": src_had_a_data_end_record}``
+        "bytes_dropped": n_unparsed_tail_bytes, "complete": src_had_a_data_end_record,
+        "last_log_time_ns": latest_log_time_recovered_or_None}``
 
     Raises:
         PathRefused: see :func:`output_target`.
@@ -248,6 +251,7 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
         "messages_dropped": copier.messages_dropped,
         "bytes_dropped": 0 if complete else size - good_end,
         "complete": complete,
+        "last_log_time_ns": copier.last_log_time,
     }
 
 
