@@ -46,12 +46,15 @@ def write_params(path: Path, **params) -> Path:
     return path
 
 
-def start_node(params_file: Path, log: Path, ros_args=(), preexec_fn=None) -> subprocess.Popen:
-    """The simulator node in its own process; ``ros_args`` are passed after --ros-args."""
+def start_node(params_file: Path, log: Path | None, ros_args=(), preexec_fn=None) -> subprocess.Popen:
+    """The simulator node in its own process; ``ros_args`` are passed after --ros-args. Its output
+    goes to ``log``, or with ``log=None`` to a pipe (``proc.stdout``, read after it ends: a file
+    the node writes is subject to its file-size limit, a pipe is not)."""
     extra = ["--ros-args", *ros_args] if ros_args else []
+    out = subprocess.PIPE if log is None else log.open("w")
     return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", "node", "--params-file", str(params_file),
-                             *extra], env=ros_env(), stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO,
-                            preexec_fn=preexec_fn)
+                             *extra], env=ros_env(), stdout=out, stderr=subprocess.STDOUT, cwd=REPO,
+                            preexec_fn=preexec_fn, text=log is None)
 
 
 def start_python(code: str, log: Path) -> subprocess.Popen:
