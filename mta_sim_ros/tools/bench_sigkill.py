@@ -30,7 +30,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
+from .bench.common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, log, resolve_scene, ros_env, table, write_report
+
+HELP = "simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor"
 DEFAULT_DOMAIN = 78
 QUIET_SECONDS = 0.5  # after SIGSTOP: no /clock for this long means every one sent has arrived
 
@@ -50,20 +52,23 @@ class Kill:
 
 
 def add_sigkill(sub) -> None:
-    p = sub.add_parser("sigkill", help="simulated time a SIGKILL of the node loses from its bag, per rate and "
-                                       "real-time factor", description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Register ``sigkill`` among the ``mta bench`` subcommands ``sub``."""
+    p = sub.add_parser("sigkill", help=HELP, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    p.set_defaults(bench_func=main)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rates", type=float, nargs="+", default=[10.0, 100.0], help="tick rates, Hz (default 10 100)")
     p.add_argument("--factors", type=float, nargs="+", default=[0.0, 1.0, 4.0],
                    help="real-time factors (default 0 1 4; 0 = as fast as possible)")
     p.add_argument("--sim-seconds", type=float, default=8.0,
-                   help="simulated seconds before the kill (default 8: past the first 64 KiB chunk at 10 Hz)")
+                   help="simulated seconds before the kill, plus a random part of a second (default 8)")
     p.add_argument("--repeats", type=int, default=3, help="kills per combination (default 3)")
-    p.add_argument("--scene", default="scenes/headland_turn.yaml", help="scene (default scenes/headland_turn.yaml)")
+    p.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene (default {DEFAULT_SCENE})")
     p.add_argument("--domain-id", type=int, default=DEFAULT_DOMAIN,
                    help=f"ROS_DOMAIN_ID of the node and the listener (default {DEFAULT_DOMAIN})")
-    p.add_argument("--out", default=str(REPO / "docs" / "benchmarks" / "sigkill.md"), help="Markdown report to write")
-    p.set_defaults(bench_func=main)
+    p.add_argument("--out", default=f"{BENCHMARKS}/sigkill.md", help="Markdown report to write")
 
 
 class ClockListener:
@@ -109,25 +114,11 @@ class ClockListener:
         self.rclpy.shutdown(context=self.context)
 
 
-def write_params(path: Path, **params) -> Path:
-    """A ROS parameters file for the node under any name."""
-    lines = ["/**:", "  ros__parameters:"]
-    for k, v in params.items():
-        value = ("true" if v else "false") if isinstance(v, bool) else repr(v) if isinstance(v, str) else v
-        lines.append(f"    {k}: {value}")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
-def start_node(params: Path, log: Path, domain: int) -> subprocess.Popen:
-    """``mta node`` in its own process, on loopback DDS in ``domain``."""
-    from ..loopback import loopback_env
-
-    env = loopback_env(domain=domain)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
-    with log.open("w") as out:
+def start_node(params: Path, log_file: Path, domain: int) -> subprocess.Popen:
+    """``mta node`` in its own process, on loopback DDS in ``domain`` (common.ros_env)."""
+    with log_file.open("w") as out:
         return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", "node", "--params-file", str(params)],
-                                env=env, stdout=out, stderr=subprocess.STDOUT, cwd=REPO)
+                                env=ros_env(domain), stdout=out, stderr=subprocess.STDOUT, cwd=REPO)
 
 
 def freeze_and_kill(node: subprocess.Popen, listener: ClockListener, timeout: float = 30.0) -> float:
@@ -148,6 +139,7 @@ def measure(scene: str, rate: float, factor: float, sim_seconds: float, work: Pa
 
     Raises RuntimeError when the node does not get there (its log says why)."""
     from ..bag import recover
+    from .bench.realtime import write_params
 
     work.mkdir(parents=True, exist_ok=True)
     params = write_params(work / "params.yaml", scene_file=scene, bag_dir=str(work / "bags"), publish_rate=rate,
@@ -172,28 +164,24 @@ def measure(scene: str, rate: float, factor: float, sim_seconds: float, work: Pa
     return Kill(rate, factor, max(killed_at, last_logged), last_logged)
 
 
-def table(kills: list[Kill]) -> list[str]:
+def kills_table(kills: list[Kill]) -> list[str]:
     """The Markdown table: per rate and factor, the kills' simulated time and loss."""
-    lines = ["| rate (Hz) | real-time factor | kills | simulated s at the kill | lost s: largest | lost s: median | "
-             "lost ticks: largest |", "|---|---|---|---|---|---|---|"]
+    rows = []
     for rate, factor in dict.fromkeys((k.rate, k.factor) for k in kills):
-        group = [k for k in kills if (k.rate, k.factor) == (rate, factor)]
-        lost = [k.lost for k in group]
-        lines.append(f"| {rate:g} | {factor:g} | {len(group)} | {statistics.median(k.killed_at for k in group):.2f} | "
-                     f"{max(lost):.3f} | {statistics.median(lost):.3f} | {round(max(lost) * rate)} |")
-    return lines
+        lost = [k.lost for k in kills if (k.rate, k.factor) == (rate, factor)]
+        at = [k.killed_at for k in kills if (k.rate, k.factor) == (rate, factor)]
+        rows.append((f"{rate:g}", f"{factor:g}", len(lost), f"{statistics.median(at):.2f}", f"{max(lost):.3f}",
+                     f"{statistics.median(lost):.3f}", round(max(lost) * rate)))
+    return table(rows, ["rate (Hz)", "real-time factor", "kills", "simulated s at the kill", "lost s: largest",
+                        "lost s: median", "lost ticks: largest"], "r")
 
 
 def main(args: argparse.Namespace) -> int:
     from ..loopback import loopback_env
     from ..recorder import BACKLOG_SECONDS, FLUSH_SECONDS
-    from .bench import header_lines, resolve_scene
 
     os.environ.update(loopback_env(domain=args.domain_id))  # this process's listener too
     scene = resolve_scene(args.scene)
-    argv = ["mta", "bench", "sigkill", "--rates", *map("{:g}".format, args.rates), "--factors",
-            *map("{:g}".format, args.factors), "--sim-seconds", f"{args.sim_seconds:g}", "--repeats",
-            str(args.repeats), "--scene", args.scene]
     kills: list[Kill] = []
     phases = random.Random(0)
     listener = ClockListener(args.domain_id)
@@ -206,25 +194,23 @@ def main(args: argparse.Namespace) -> int:
                         kill = measure(scene, rate, factor, args.sim_seconds + phases.random(),
                                        Path(tmp) / f"{rate:g}_{factor:g}_{i}", args.domain_id, listener)
                         kills.append(kill)
-                        print(f"{rate:g} Hz, real-time factor {factor:g}: killed at {kill.killed_at:.3f} s, "
-                              f"bag up to {kill.last_logged:.3f} s: {kill.lost:.3f} s lost", flush=True)
+                        log(f"{rate:g} Hz, real-time factor {factor:g}: killed at {kill.killed_at:.3f} s, "
+                            f"bag up to {kill.last_logged:.3f} s: {kill.lost:.3f} s lost")
     except RuntimeError as err:
         print(f"mta bench sigkill: {err}", file=sys.stderr)
         return 1
     finally:
         listener.close()
     bound = FLUSH_SECONDS + BACKLOG_SECONDS
-    lines = header_lines("What a SIGKILL of the node loses from its bag", argv) + table(kills) + [
+    print("\n".join(kills_table(kills)))
+    write_report(args.out, header_lines("What a SIGKILL of the node loses from its bag", args) + kills_table(kills) + [
         "",
         f"Simulated time at the kill: the last /clock the node published, heard after SIGSTOP froze it "
         f"(SIGKILL follows; nothing runs in between). Lost: that time less the latest log time in the bag "
         f"`mta recover` rebuilds. The bound: {bound:g} s + one tick (recorder.py: a chunk is written once it "
         f"spans {FLUSH_SECONDS:g} s of log time, and the ticks wait while more than {BACKLOG_SECONDS:g} s "
         f"of it waits for the writer).",
-    ]
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text("\n".join(lines) + "\n")
-    print("\n".join(table(kills)) + f"\nwrote {args.out}")
+    ])
     return 0
 
 
