@@ -11,17 +11,17 @@ With ``background=True`` (the node) the MCAP work happens on a thread of its own
 message in the mcap library) and compressing each chunk stay off the simulation's tick. The tick
 never wakes that thread: it looks at the deque by itself, every POLL_SECONDS, or again at once
 (MIN_POLL_SECONDS) after a look that found half of BACKLOG_SECONDS of log time or more waiting.
-Signalling it from the tick
-(a queue put per tick) let the scheduler run the
-woken thread in the middle of the tick: in the node's benchmark the slowest 0.1 % of ticks then
-lost ~1 ms inside that put, off the CPU. ``start`` and ``close`` first wait until everything
+Signalling it from the tick (a queue put per tick) let the scheduler run the woken thread in the
+middle of the tick: in the node's benchmark the slowest 0.1 % of ticks then lost ~1 ms inside
+that put, off the CPU. ``start`` and ``close`` first wait until everything
 handed over is written, so a closed bag holds every message handed over before.
 
 What a SIGKILL loses is bounded in simulated (log) time, whatever the real-time factor: the open
 chunk (written once it spans FLUSH_SECONDS of log time, or 64 KiB), and what is still waiting in
 the deque, which ``behind`` keeps under BACKLOG_SECONDS: the session holds its ticks while it is
-true (the tick does no I/O; it only skips advancing, as when paused). So a run at real-time
-factor 0 goes as fast as its bag is written, not faster.
+true (a held firing does no I/O: it skips advancing, as when paused, and sleeps MIN_POLL_SECONDS
+to leave the interpreter to the writer). So a run at real-time factor 0 goes as fast as its bag
+is written, not faster.
 """
 from __future__ import annotations
 
