@@ -13,13 +13,18 @@ def check_main(args: argparse.Namespace) -> int:
 
 
 def recover_main(args: argparse.Namespace) -> int:
+    """Exit 2 when the paths are refused (bag.output_target: nothing read or written), 1 when the
+    bag cannot be rebuilt, 0 when it is; one line on stderr either way it fails."""
     from pathlib import Path
 
-    from .bag import BagError, recover
+    from .bag import BagError, PathRefused, recover
 
     out = args.output or str(Path(args.bag).with_suffix(".recovered.mcap"))
     try:
         report = recover(args.bag, out)
+    except PathRefused as err:
+        print(f"mta recover: {err}", file=sys.stderr)
+        return 2
     except (BagError, OSError) as err:
         print(f"mta recover: {err}", file=sys.stderr)
         return 1
