@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .bench.common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, log, resolve_scene, ros_env, table, write_report
+from .common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, log, resolve_scene, ros_env, table, write_report
 
 HELP = "simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor"
 DEFAULT_DOMAIN = 78
@@ -49,13 +49,6 @@ class Kill:
     @property
     def lost(self) -> float:
         return self.killed_at - self.last_logged
-
-
-def add_sigkill(sub) -> None:
-    """Register ``sigkill`` among the ``mta bench`` subcommands ``sub``."""
-    p = sub.add_parser("sigkill", help=HELP, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_arguments(p)
-    p.set_defaults(bench_func=main)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -79,7 +72,7 @@ class ClockListener:
         from rclpy.executors import SingleThreadedExecutor
         from rosgraph_msgs.msg import Clock
 
-        from ..ros_msgs import QOS
+        from ...ros_msgs import QOS
 
         self.rclpy = rclpy
         self.context = rclpy.Context()
@@ -138,8 +131,8 @@ def measure(scene: str, rate: float, factor: float, sim_seconds: float, work: Pa
     ``sim_seconds``, kill it (freeze_and_kill), rebuild its bag: what the kill lost.
 
     Raises RuntimeError when the node does not get there (its log says why)."""
-    from ..bag import recover
-    from .bench.realtime import write_params
+    from ...bag import recover
+    from .realtime import write_params
 
     work.mkdir(parents=True, exist_ok=True)
     params = write_params(work / "params.yaml", scene_file=scene, bag_dir=str(work / "bags"), publish_rate=rate,
@@ -177,8 +170,8 @@ def kills_table(kills: list[Kill]) -> list[str]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..loopback import loopback_env
-    from ..recorder import BACKLOG_SECONDS, FLUSH_SECONDS
+    from ...loopback import loopback_env
+    from ...recorder import BACKLOG_SECONDS, FLUSH_SECONDS
 
     os.environ.update(loopback_env(domain=args.domain_id))  # this process's listener too
     scene = resolve_scene(args.scene)
@@ -212,12 +205,3 @@ def main(args: argparse.Namespace) -> int:
         f"of it waits for the writer).",
     ])
     return 0
-
-
-if __name__ == "__main__":  # until `mta bench` registers it: python -m mta_sim_ros.tools.bench_sigkill ...
-    from mta_sim_ros.tools import bench_sigkill  # this module under its own name (the report's header names it)
-
-    parser = argparse.ArgumentParser(prog="python -m mta_sim_ros.tools.bench_sigkill")
-    bench_sigkill.add_sigkill(parser.add_subparsers(dest="bench", required=True))
-    parsed = parser.parse_args(["sigkill", *sys.argv[1:]])
-    sys.exit(parsed.bench_func(parsed))
