@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import sys
-from dataclasses import dataclass
 from typing import Any, Callable, Iterable, NoReturn, Optional, Union
 
 import numpy as np
-import yaml
 
+from .. import validate
+from ..validate import ANY, NON_NEGATIVE, POSITIVE, Rule
 from . import maneuvers
 from . import spec
 
@@ -31,90 +30,31 @@ INTEGRATOR_METHODS = spec.INTEGRATOR_METHODS
 TRACTION_LAWS = ("constant", "governor", "prescribed_speed")
 
 
-class SpecError(ValueError):
+class SpecError(validate.InputError):
     """A train or scene file breaks a rule; the message says which field, where and why."""
 
 
 # --------------------------------------------------------------------------- reading YAML
 
 
-class _Loader(yaml.SafeLoader):
-    """Safe YAML loader that rejects repeated keys and reads ``1e-8`` as a float."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
-                if key_node.value in seen:
-                    raise _RepeatedKey(key_node.value, key_node.start_mark)
-                seen.add(key_node.value)
-        return super().construct_mapping(node, deep)
-
-
-class _RepeatedKey(yaml.YAMLError):
-    def __init__(self, key: str, mark):
-        super().__init__(key)
-        self.key, self.mark = key, mark
-
-
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
-
-
 def _fail(field: str, value: str, where: str, source: str, rule: str) -> NoReturn:
-    raise SpecError(f"{field}: {value} in {where} of {source} must be {rule}")
+    raise SpecError(validate.fault_message(field, value, rule, where, source))
 
 
 def _read(path: Union[str, os.PathLike]) -> tuple[dict, str]:
-    """The top-level mapping of a YAML file, and the path as given (for messages)."""
+    """The top-level mapping of a YAML file, and the path as given (for messages); the file's
+    size, nesting and aliases are bounded (validate.py)."""
     source = str(path)
-    try:
-        with open(path, encoding="utf-8") as stream:
-            return _parse(stream, source)
-    except FileNotFoundError:
-        _fail("file", "not found", "document", source, "an existing YAML file")
-    except (OSError, UnicodeDecodeError) as error:
-        _fail("file", f"unreadable ({error})", "document", source, "a readable UTF-8 YAML file")
+    return validate.read_mapping(path, SpecError), source
 
 
-def _parse(stream, source: str) -> tuple[dict, str]:
-    """The top-level mapping of a YAML document (a text or an open file), and its source."""
-    try:
-        data = yaml.load(stream, Loader=_Loader)
-    except _RepeatedKey as error:
-        _fail(error.key, "given twice", _line(error.mark), source, "given once")
-    except yaml.MarkedYAMLError as error:
-        _fail("yaml", error.problem, _line(error.problem_mark), source, "valid YAML syntax")
-    except yaml.YAMLError as error:
-        _fail("yaml", str(error).replace("\n", " "), "document", source, "valid YAML syntax")
-    if data is None:
-        _fail("file", "empty", "document", source, "a YAML mapping of fields")
-    if not isinstance(data, dict):
-        _fail("file", f"a {type(data).__name__}", "document", source, "a YAML mapping of fields")
-    return data, source
-
-
-def _line(mark) -> str:
-    return f"line {mark.line + 1}, column {mark.column + 1}"
+def _parse(text: str, source: str) -> tuple[dict, str]:
+    """The top-level mapping of a YAML text, and its source."""
+    return validate.parse_mapping(text, source, SpecError), source
 
 
 # --------------------------------------------------------------------------- rules and fields
 
-
-@dataclass(frozen=True)
-class Rule:
-    """A condition on a number and the words that finish "must be ..."."""
-
-    text: str
-    test: Callable[[float], bool]
-
-
-ANY = Rule("finite", lambda x: True)
-POSITIVE = Rule("> 0", lambda x: x > 0)
-NON_NEGATIVE = Rule(">= 0", lambda x: x >= 0)
 
 _REQUIRED = object()  # default meaning "the field must be given"
 
@@ -126,14 +66,8 @@ class _Missing:
         return "(missing)"
 
 
-def _show(value: Any) -> str:
-    """A value as it would read in the YAML, shortened to keep messages on one line."""
-    text = repr(value) if isinstance(value, str) else str(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+_show = validate.show
+_is_number = validate.is_number
 
 
 class _Section:
@@ -160,8 +94,9 @@ class _Section:
         allowed = tuple(fields)
         for key, value in self.values.items():
             if key not in allowed:
-                expected = ", ".join(f"{k}[_deg]" if k in self.angles else k for k in allowed)
-                self.fail(str(key), value, f"removed or renamed: unknown field; expected one of {expected}")
+                spelled = [f"{k}[_deg]" if k in self.angles else k for k in allowed]
+                name = key if isinstance(key, str) and len(key) <= validate.SHOW_WIDTH else _show(key)
+                self.fail(name, value, validate.unknown_name_rule(key, allowed, spelled=spelled))
 
     def _convert_degrees(self, key: str) -> None:
         deg_key = key + "_deg"
@@ -205,10 +140,9 @@ class _Section:
         if key not in self.values:
             return self._absent(key, default, "a number" if rule is ANY else f"a number {rule.text}")
         value = self.values[key]
-        if not _is_number(value):
-            self.fail(key, value, "a number")
-        if not math.isfinite(value):
-            self.fail(key, value, "a finite number")
+        problem = validate.check_number(value, ANY)
+        if problem:
+            self.fail(key, value, problem)
         if not rule.test(value):
             self.fail(key, value, rule.text)
         return float(value)
@@ -220,8 +154,10 @@ class _Section:
         value = self.values[key]
         if not isinstance(value, list):
             self.fail(key, value, "a list of numbers")
+        if len(value) > validate.MAX_TABLE:
+            self.fail(key, value, f"a list of at most {validate.MAX_TABLE} numbers (it has {len(value)})")
         for i, item in enumerate(value):
-            if not _is_number(item) or not math.isfinite(item) or not rule.test(item):
+            if not validate.is_finite(item) or not rule.test(item):
                 self.fail_item(key, i, "a finite number" if rule is ANY else f"a finite number {rule.text}")
         return tuple(float(item) for item in value)
 
@@ -487,11 +423,9 @@ def _integrator(top: _Section, publish_rate: float) -> spec.Integrator:
     """Integrator method and tolerances; the step must fit in one publishing period."""
     s = top.section("integrator", ("method", "step", "rtol", "atol", "split_kinks"))
     default = spec.Integrator()
-    period = 1.0 / publish_rate
-    step_rule = Rule(f"> 0 and <= 1/publish_rate = {period:.6g} s", lambda x: 0 < x <= period * (1 + 1e-12))
     return spec.Integrator(
         method=s.choice("method", INTEGRATOR_METHODS, default.method),
-        step=s.number("step", step_rule, default.step),
+        step=s.number("step", validate.step_rule(publish_rate), default.step),
         rtol=s.number("rtol", POSITIVE, default.rtol),
         atol=s.number("atol", POSITIVE, default.atol),
         split_kinks=s.flag("split_kinks", default.split_kinks),
@@ -531,7 +465,22 @@ def _steering(top: _Section, train: spec.Train, speed_at: Callable[[float], floa
         from_scene = error.param in maneuvers.SCENE_PARAMS and not p.has(error.param)
         value = p.values.get(error.param, error.value)
         p.fail(error.param, value, error.rule + (" (taken from the scene; give it in params)" if from_scene else ""))
+    problem = _table_problem(table)
+    if problem:
+        s.fail("maneuver", name, f"expanded with these params to a table of {problem}")
     return table, name
+
+
+def _table_problem(table: spec.Table) -> str:
+    """'' if a table (an expanded manoeuvre's) has at most MAX_TABLE finite entries at strictly
+    increasing times, else what it has instead."""
+    if len(table.time) > validate.MAX_TABLE:
+        return f"at most {validate.MAX_TABLE} entries (it has {len(table.time)})"
+    if not all(map(math.isfinite, table.time + table.value)):
+        return "finite times and values"
+    if any(later <= earlier for earlier, later in zip(table.time, table.time[1:])):
+        return "strictly increasing times (they collapse in floating point)"
+    return ""
 
 
 SCENE_FIELDS = ("name", "train", "duration", "initial", "steering", "speed", "integrator", "publish_rate",
@@ -559,16 +508,17 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.
         top.text("train")  # still a required field; the train itself is the one given
     initial = _initial(top, train)
     speed = _speed(top)
-    publish_rate = top.number("publish_rate", POSITIVE, spec.Scene.publish_rate)
+    publish_rate = top.number("publish_rate", validate.PUBLISH_RATE, spec.Scene.publish_rate)
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
+    integrator = _integrator(top, publish_rate)
     return spec.Scene(
         name=top.text("name", _stem(source)),
         train=train,
-        duration=top.number("duration", POSITIVE),
+        duration=_duration(top, publish_rate, integrator.step),
         initial=initial,
         steering=steering,
         speed=speed,
-        integrator=_integrator(top, publish_rate),
+        integrator=integrator,
         publish_rate=publish_rate,
         maneuver=maneuver,
         fidelity=top.choice("fidelity", FIDELITY_CHOICES, "auto"),
@@ -576,6 +526,15 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.
         source=source,
         raw=data,
     )
+
+
+def _duration(top: _Section, publish_rate: float, step: float) -> float:
+    """The run's length, s: > 0, and a run of it finite (validate.run_size: ticks and steps)."""
+    duration = top.number("duration", POSITIVE)
+    problem = validate.run_size(duration, publish_rate, step)
+    if problem:
+        top.fail("duration", top.values["duration"], problem)
+    return duration
 
 
 def _scene_train(top: _Section) -> spec.Train:
@@ -609,8 +568,7 @@ def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
         return _train(data, source)
     if "train" in data:
         return _scene(data, source)
-    keys = ", ".join(str(k) for k in data)
-    _fail("file", f"keys {keys}", "top level", source, "a train (with carts) or a scene (with train)")
+    _fail("file", f"keys {_show(list(data))}", "top level", source, "a train (with carts) or a scene (with train)")
 
 
 def check_files(paths: Iterable[Union[str, os.PathLike]]) -> int:

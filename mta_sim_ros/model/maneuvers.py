@@ -20,6 +20,7 @@ from typing import Callable, Mapping, Optional
 
 import numpy as np
 
+from ..validate import MAX_TABLE, is_finite
 from .spec import Table
 
 # rad: largest gap between a sampled smooth shape and its linear interpolation (half the 1e-4
@@ -84,6 +85,10 @@ def sine(amplitude: float = 0.1, period: float = 6.0, t0: float = 1.0, cycles: f
     if amplitude != 0.0:
         h = min(h, math.sqrt(8.0 * TOLERANCE / (abs(amplitude) * omega**2)))
     length = cycles * period
+    samples = length / h + 1
+    _require(samples <= MAX_TABLE, "cycles", cycles,
+             f"fewer: {samples:.4g} samples of amplitude {amplitude:g} at step {h:.4g} s, more than the {MAX_TABLE} "
+             f"entries a table may have")
     s = np.linspace(0.0, length, math.ceil(length / h) + 1)
     return _table(t0 + s, amplitude * np.sin(omega * s))
 
@@ -192,18 +197,15 @@ def expand(
         kwargs["wheelbase"] = wheelbase
     if "speed" in defaults and "speed" not in kwargs and speed_at is not None:
         kwargs["speed"] = speed_at(kwargs.get("t0", defaults.get("t0", 0.0)))
+    peak_rule = f"within the steering actuator's max_angle {max_angle:.4g} rad"
+    if maneuver.peak:  # before building: the peak sets how finely a curve is sampled
+        peak_value = kwargs.get(maneuver.peak, defaults[maneuver.peak])
+        _require(abs(peak_value) <= max_angle, maneuver.peak, peak_value, peak_rule)
     table = maneuver.build(**kwargs)
     if maneuver.peak:
-        peak_value = kwargs.get(maneuver.peak, defaults[maneuver.peak])
         largest = max(abs(v) for v in table.value)
-        _require(
-            largest <= max_angle,
-            maneuver.peak,
-            peak_value,
-            f"within the steering actuator's max_angle {max_angle:.4g} rad",
-        )
+        _require(largest <= max_angle, maneuver.peak, peak_value, peak_rule)
     return table
 
 
-def _is_finite_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+_is_finite_number = is_finite
