@@ -164,22 +164,36 @@ def step_rule(rate: float) -> Rule:
 
 
 def steps_per_tick(tick: float, step: float) -> int:
-    """Steps a fixed-step method takes over one tick (the tick split into equal parts)."""
-    return max(1, math.ceil(tick / step - 1e-9))
+    """Steps a fixed-step method takes over one tick (the tick split into equal parts); at most
+    10^18 (a step of 0 or one that underflows against the tick)."""
+    ratio = tick / step if step > 0 else math.inf
+    return max(1, math.ceil(ratio - 1e-9)) if ratio < 1e18 else 10**18
+
+
+def tick_count(duration: float, rate: float) -> str:
+    """'' if a run of ``duration`` s at ``rate`` Hz is within MAX_TICKS ticks, else the rule it
+    breaks, with its numbers."""
+    ticks = duration * rate
+    if ticks <= MAX_TICKS:
+        return ""
+    return (f"at most {MAX_TICKS:.0e} ticks: {duration:.6g} s x {rate:.6g} Hz = {ticks:.3g} ticks "
+            f"(at most {MAX_TICKS / rate:.6g} s at this rate)")
+
+
+def step_count(duration: float, rate: float, step: float) -> str:
+    """'' if a run of ``duration`` s at ``rate`` Hz with integrator step ``step`` s is within
+    MAX_RUN_STEPS steps, else the rule it breaks, with its numbers."""
+    per_tick = steps_per_tick(1.0 / rate, step)
+    steps = math.floor(duration * rate + 1e-9) * per_tick
+    if steps <= MAX_RUN_STEPS:
+        return ""
+    return (f"at most {MAX_RUN_STEPS:.0e} integrator steps in a run: {duration * rate:.3g} ticks x {per_tick} "
+            f"steps of {step:.3g} s = {steps:.3g} steps")
 
 
 def run_size(duration: float, rate: float, step: float) -> str:
-    """'' if a run of ``duration`` s at ``rate`` Hz with integrator step ``step`` s is within
-    MAX_TICKS ticks and MAX_RUN_STEPS steps, else the rule it breaks, with its numbers."""
-    ticks = duration * rate
-    if ticks > MAX_TICKS:
-        return (f"at most {MAX_TICKS:.0e} ticks: {duration:.6g} s x {rate:.6g} Hz = {ticks:.3g} ticks "
-                f"(at most {MAX_TICKS / rate:.6g} s at this rate)")
-    steps = math.floor(ticks + 1e-9) * steps_per_tick(1.0 / rate, step)
-    if steps > MAX_RUN_STEPS:
-        return (f"at most {MAX_RUN_STEPS:.0e} integrator steps: {ticks:.3g} ticks x "
-                f"{steps_per_tick(1.0 / rate, step)} steps of {step:.3g} s = {steps:.3g} steps")
-    return ""
+    """'' if a run is within MAX_TICKS ticks and MAX_RUN_STEPS steps, else the rule it breaks."""
+    return tick_count(duration, rate) or step_count(duration, rate, step)
 
 
 # --------------------------------------------------------------------------- names
@@ -472,14 +486,15 @@ def number_arg(rule: Rule = ANY, kind: type = float) -> Callable[[str], float]:
     import argparse
 
     def parse(text: str):
+        shown = text if len(text) <= SHOW_WIDTH and text.isprintable() else show(text)
         try:
             value = kind(text)
         except (TypeError, ValueError):
-            raise argparse.ArgumentTypeError(f"{show(text)} must be {'an integer' if kind is int else 'a number'} "
-                                             f"{rule.text}".rstrip()) from None
+            raise argparse.ArgumentTypeError(f"{shown} must be {'an integer' if kind is int else 'a number'} "
+                                             f"{'' if rule is ANY else rule.text}".rstrip()) from None
         problem = check_number(value, rule)
         if problem:
-            raise argparse.ArgumentTypeError(f"{show(text)} must be {problem}")
+            raise argparse.ArgumentTypeError(f"{shown} must be {problem}")
         return value
 
     parse.__name__ = kind.__name__  # argparse names the type in its own messages

@@ -336,7 +336,7 @@ def _train(data: dict, source: str) -> spec.Train:
     rolling_fields = ("cart", "coefficient")
     draft_fields = ("cart", "A", "B", "C", "soil_factor", "width", "depth")
     return spec.Train(
-        name=top.text("name", _stem(source)),
+        name=_name(top, source),
         carts=carts,
         traction=_traction(forces),
         rolling=tuple(_rolling(s, names) for s in forces.sections("rolling", rolling_fields)),
@@ -346,6 +346,18 @@ def _train(data: dict, source: str) -> spec.Train:
         smoothing_speed=top.number("smoothing_speed", POSITIVE, spec.Train.smoothing_speed),
         source=source,
     )
+
+
+NAME_CHARS = 100
+
+
+def _name(top: _Section, source: str) -> str:
+    """The train's or scene's name (default: the file's stem): a plain word, for it names the
+    bag of a run (bags/<scene name>.mcap), never a path."""
+    name = top.text("name", _stem(source))
+    if top.has("name") and (len(name) > NAME_CHARS or not name.isprintable() or any(c in name for c in "/\\")):
+        top.fail("name", name, f"a name of at most {NAME_CHARS} printable characters without / or \\")
+    return name
 
 
 def _stem(source: str) -> str:
@@ -512,7 +524,7 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
     integrator = _integrator(top, publish_rate)
     return spec.Scene(
-        name=top.text("name", _stem(source)),
+        name=_name(top, source),
         train=train,
         duration=_duration(top, publish_rate, integrator.step),
         initial=initial,
