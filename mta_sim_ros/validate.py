@@ -163,6 +163,13 @@ def step_rule(rate: float) -> Rule:
                 lambda x: low * (1 - 1e-12) <= x <= tick * (1 + 1e-12))
 
 
+def step_floor(rate: float) -> Rule:
+    """An integrator step that a tick of 1/rate s can take: at least tick / MAX_STEPS_PER_TICK (a
+    longer step than the tick is cut to it)."""
+    low = 1.0 / rate / MAX_STEPS_PER_TICK
+    return Rule(f">= 1/publish_rate / {MAX_STEPS_PER_TICK} = {low:.6g} s", lambda x: x >= low * (1 - 1e-12))
+
+
 def steps_per_tick(tick: float, step: float) -> int:
     """Steps a fixed-step method takes over one tick (the tick split into equal parts); at most
     10^18 (a step of 0 or one that underflows against the tick)."""
