@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-from .validate import EXIT_INPUT, InputError, one_line
+from .validate import EXIT_INPUT, InputError, fail, one_line, output_file, show
 
 
 class Parser(argparse.ArgumentParser):
@@ -33,9 +33,11 @@ def recover_main(args: argparse.Namespace) -> int:
 
     from .bag import BagError, recover
 
-    out = args.output or str(Path(args.bag).with_suffix(".recovered.mcap"))
+    out = output_file(args.output or str(Path(args.bag).with_suffix(".recovered.mcap")), "--output")
+    if out.exists() and Path(args.bag).exists() and out.samefile(args.bag):
+        fail("--output", show(str(out)), "another file than the bag it recovers")
     try:
-        report = recover(args.bag, out)
+        report = recover(args.bag, str(out))
     except (BagError, OSError) as err:
         print(f"mta recover: {err}", file=sys.stderr)
         return 1

@@ -184,3 +184,10 @@ def check_ros_args(argv: list[str]) -> None:
             node = arg.split(":=", 1)[1]
     for path in files:
         read_params_file(path, node)
+
+
+def argument(name: str):
+    """An argparse ``type`` for a command-line option that sets numeric parameter ``name``: its
+    range here, so a command and the node refuse the same values."""
+    p = BY_NAME[name]
+    return validate.number_arg(validate.Range.of(p.low, p.high), type(p.default))

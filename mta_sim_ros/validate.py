@@ -37,7 +37,7 @@ class InputError(ValueError):
 def fault_message(field: str, value: str, rule: str, where: str = "", source: str = "") -> str:
     """``FIELD: VALUE in WHERE of SOURCE must be RULE`` (the parts without a value left out)."""
     place = (f" in {where}" if where else "") + (f" of {source}" if source else "")
-    return one_line(f"{field}: {value}{place} must be {rule}")
+    return one_line(f"{field}: " * bool(field) + f"{value}{place} must be {rule}")
 
 
 def fail(field: str, shown: str, rule: str, where: str = "", source: str = "",
@@ -152,7 +152,12 @@ MAX_STEPS_PER_TICK = 10_000
 #: integrator steps of one run
 MAX_RUN_STEPS = 100_000_000
 #: entries of a table (steering, speed; an expanded manoeuvre included)
-MAX_TABLE = 10_000
+MAX_TABLE = 100_000
+#: simulated seconds a command may be asked to run (11.6 days)
+MAX_DURATION = 1e6
+DURATION = Rule(f"in (0, {MAX_DURATION:g}] s", lambda x: 0 < x <= MAX_DURATION)
+#: repeats, rounds, ticks a command counts
+COUNT = Range.of(1, 1_000_000)
 
 
 def step_rule(rate: float) -> Rule:
@@ -505,4 +510,20 @@ def number_arg(rule: Rule = ANY, kind: type = float) -> Callable[[str], float]:
         return value
 
     parse.__name__ = kind.__name__  # argparse names the type in its own messages
+    return parse
+
+
+def path_arg(check: Callable[[str, str], Path]) -> Callable[[str], str]:
+    """An argparse ``type`` for an output path: ``check`` (output_file or output_folder) at parse
+    time, so a bad path is refused before any work; the text is kept as given."""
+    import argparse
+
+    def parse(text: str) -> str:
+        try:
+            check(text, "")
+        except InputError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+        return text
+
+    parse.__name__ = "path"
     return parse

@@ -32,6 +32,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..validate import COUNT, DURATION, PUBLISH_RATE, Range, number_arg, output_file, output_folder, path_arg
+
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_SCENE = "scenes/headland_turn.yaml"
 DEFAULT_DOMAIN = 77
@@ -43,13 +45,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="bench", required=True, metavar="BENCH")
     r = sub.add_parser("realtime", help="the node at real-time factor 1, steered over DDS; tick statistics",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("--duration", type=float, default=600.0, help="simulated seconds to run (default 600)")
-    r.add_argument("--rate", type=float, default=100.0, help="publish (tick) rate, Hz (default 100)")
+    r.add_argument("--duration", type=number_arg(DURATION), default=600.0, help="simulated seconds to run (default 600)")
+    r.add_argument("--rate", type=number_arg(PUBLISH_RATE), default=100.0, help="publish (tick) rate, Hz (default 100)")
     r.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
-    r.add_argument("--out", default="docs/benchmarks/node_realtime.md", help="Markdown report to write")
-    r.add_argument("--domain-id", type=int, default=DEFAULT_DOMAIN,
+    r.add_argument("--out", type=path_arg(output_file), default="docs/benchmarks/node_realtime.md", help="Markdown report to write")
+    r.add_argument("--domain-id", type=number_arg(Range.of(0, 232), int), default=DEFAULT_DOMAIN,
                    help=f"ROS_DOMAIN_ID of the node and the player (default {DEFAULT_DOMAIN})")
-    r.add_argument("--keep", metavar="DIR", help="keep the bag and logs in DIR (default: a temp dir, removed)")
+    r.add_argument("--keep", metavar="DIR", type=path_arg(output_folder), help="keep the bag and logs in DIR (default: a temp dir, removed)")
     r.add_argument("--pin", action="store_true",
                    help="reserve the last CPU for the node's tick: node parameter tick_cpu = that CPU (the "
                         "node's other threads move off it) and the player started on the other CPUs")
@@ -65,11 +67,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     m = sub.add_parser("method", help="integrators offline: error against a reference vs CPU time per tick",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     m.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
-    m.add_argument("--rate", type=float, default=100.0, help="tick rate, Hz (default 100, the node's)")
-    m.add_argument("--repeats", type=int, default=5, help="timed repeats per method (default 5)")
-    m.add_argument("--paced-ticks", type=int, default=1000,
+    m.add_argument("--rate", type=number_arg(PUBLISH_RATE), default=100.0, help="tick rate, Hz (default 100, the node's)")
+    m.add_argument("--repeats", type=number_arg(COUNT, int), default=5, help="timed repeats per method (default 5)")
+    m.add_argument("--paced-ticks", type=number_arg(Range.of(0, COUNT.high), int), default=1000,
                    help="ticks per method in the paced measurement (one per tick of wall time; default 1000, 0 = none)")
-    m.add_argument("--out", default="docs/benchmarks/default_method.md", help="Markdown report to write")
+    m.add_argument("--out", type=path_arg(output_file), default="docs/benchmarks/default_method.md", help="Markdown report to write")
     m.set_defaults(bench_func=method_main)
 
     from . import bench_fidelity  # fidelity levels: error against slip and cost per scene (docs/fidelity.md)
@@ -95,8 +97,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     t = sub.add_parser("tick-parts", help="the node tick's parts in two forms (generic against template, Python against compiled), side by side offline",
                        description=tick_parts_main.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     t.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
-    t.add_argument("--rounds", type=int, default=30, help="rounds; each times every variant once (default 30)")
-    t.add_argument("--calls", type=int, default=100, help="calls per variant per round (default 100)")
+    t.add_argument("--rounds", type=number_arg(COUNT, int), default=30, help="rounds; each times every variant once (default 30)")
+    t.add_argument("--calls", type=number_arg(COUNT, int), default=100, help="calls per variant per round (default 100)")
     t.set_defaults(bench_func=tick_parts_main)
 
 

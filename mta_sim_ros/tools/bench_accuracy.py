@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..validate import COUNT, PUBLISH_RATE, number_arg, output_folder, path_arg
+
 REPO = Path(__file__).resolve().parents[2]
 SCENES = (  # label, file, what
     ("headland U-turn", "scenes/headland_turn.yaml", "default train, 3 carts, 70 s"),
@@ -732,11 +734,12 @@ def add_work_precision(sub) -> None:
     p = sub.add_parser("work-precision", help="error vs CPU time of every integrator on six scenes, node and free mode",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="fewer steps and tolerances, one repeat: a smoke run")
-    p.add_argument("--repeats", type=int, default=2,
+    p.add_argument("--repeats", type=number_arg(COUNT, int), default=2,
                    help=f"timed repeats of the runs cheaper than {CHEAP:g} CPU s/s, minimum taken (default 2)")
-    p.add_argument("--rate", type=float, default=100.0, help="tick rate, Hz (default 100, the node's)")
+    p.add_argument("--rate", type=number_arg(PUBLISH_RATE), default=100.0, help="tick rate, Hz (default 100, the node's)")
     p.add_argument("--scenes", nargs="*", help="only scenes whose file contains one of these words")
-    p.add_argument("--out-dir", default=str(REPO / "docs" / "benchmarks"), help="where to write the .md and .png")
+    p.add_argument("--out-dir", type=path_arg(output_folder), default=str(REPO / "docs" / "benchmarks"),
+                   help="where to write the .md and .png")
     p.set_defaults(bench_func=work_precision_main)
 
 
@@ -745,5 +748,6 @@ def add_stability(sub) -> None:
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="fewer steps and tolerances: a smoke run")
     p.add_argument("--scenes", nargs="*", help="only scenes whose file contains one of these words")
-    p.add_argument("--out-dir", default=str(REPO / "docs" / "benchmarks"), help="where to write the .md")
+    p.add_argument("--out-dir", type=path_arg(output_folder), default=str(REPO / "docs" / "benchmarks"),
+                   help="where to write the .md")
     p.set_defaults(bench_func=stability_main)

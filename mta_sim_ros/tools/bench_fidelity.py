@@ -20,6 +20,7 @@ from ..fidelity import LEVELS, choose, estimate
 from ..model.loader import load_scene
 from ..model.slip import DEFAULT_METHOD, SlipModel, axle_stiffness
 from ..sim import run_scene, start_state
+from ..validate import COUNT, number_arg, output_file, path_arg
 
 SCENES = "config/scenes"
 OUTPUTS = ("poses", "speed", "power", "hitch_angles")
@@ -27,8 +28,8 @@ OUTPUTS = ("poses", "speed", "power", "hitch_angles")
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenes", default=SCENES, help=f"folder of scene YAML files (default {SCENES})")
-    p.add_argument("--repeats", type=int, default=2, help="timed runs per scene and level (default 2)")
-    p.add_argument("--out", default="docs/fidelity.md", help="Markdown report to write")
+    p.add_argument("--repeats", type=number_arg(COUNT, int), default=2, help="timed runs per scene and level (default 2)")
+    p.add_argument("--out", type=path_arg(output_file), default="docs/fidelity.md", help="Markdown report to write")
 
 
 def record(scene, level: str, **kw):

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..validate import output_file, path_arg
+
 REPO = Path(__file__).resolve().parents[2]
 REF_TOL = 1e-12
 ADAPTIVE_TOL = 1e-8
@@ -33,7 +35,8 @@ def add_kinks(sub) -> None:
     p = sub.add_parser("kinks", help="every method across the kinks of the right-hand side, split and not",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scene", default="scenes/kinks.yaml", help="the kink scene (default scenes/kinks.yaml)")
-    p.add_argument("--out", default=str(REPO / "docs" / "benchmarks" / "kinks.md"), help="Markdown report to write")
+    p.add_argument("--out", type=path_arg(output_file), default=str(REPO / "docs" / "benchmarks" / "kinks.md"),
+                   help="Markdown report to write")
     p.set_defaults(bench_func=main)
 
 

@@ -43,6 +43,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..validate import COUNT, DURATION, Range, number_arg, output_file, path_arg
+
 CARTS = (1, 2, 3, 5, 10, 20, 50, 100)
 RATES = (50.0, 100.0, 200.0)
 METHOD, STEP = "rk4", 0.01  # the node's default (config/sim.yaml, scenes)
@@ -58,12 +60,12 @@ def add_scaling(sub) -> None:
     s = sub.add_parser("scaling", help="tick cost vs carts and publish rate; cost per simulated second vs "
                                        "run length; peak memory of a 1-hour run (offline)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("--ticks", type=int, default=4000, help="timed ticks per (carts, rate) case (default 4000)")
-    s.add_argument("--paced-ticks", type=int, default=1500,
+    s.add_argument("--ticks", type=number_arg(COUNT, int), default=4000, help="timed ticks per (carts, rate) case (default 4000)")
+    s.add_argument("--paced-ticks", type=number_arg(Range.of(0, COUNT.high), int), default=1500,
                    help="ticks of the paced measurement (default train and n = 100 at 100 Hz; default 1500)")
-    s.add_argument("--long-duration", type=float, default=3600.0,
+    s.add_argument("--long-duration", type=number_arg(DURATION), default=3600.0,
                    help="simulated seconds of the long run with bag writing (default 3600)")
-    s.add_argument("--out", default="docs/benchmarks/scaling.md", help="Markdown report to write (PNGs beside it)")
+    s.add_argument("--out", type=path_arg(output_file), default="docs/benchmarks/scaling.md", help="Markdown report to write (PNGs beside it)")
     s.add_argument("--quick", action="store_true",
                    help="smoke run: n = 1, 3, 10; 100 Hz; 300 ticks; 100 paced; 60 s long run")
     s.add_argument("--replot", metavar="JSON", help="no measuring: rewrite --out and its figures from the raw "
