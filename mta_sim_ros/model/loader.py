@@ -218,6 +218,48 @@ class _Section:
 
 # --------------------------------------------------------------------------- trains
 
+# --------------------------------------------------------------------------- ranges
+# Every number has a range, orders of magnitude beyond any machine, so that no accepted train or
+# scene overflows the model's arithmetic (a ratio a_k / l_k squared) or makes it too stiff to step.
+
+
+def _up_to(high: float, unit: str) -> Rule:
+    return Rule(f"> 0 and <= {high:g} {unit}", lambda x: 0 < x <= high)
+
+
+def _span(low: float, high: float, unit: str) -> Rule:
+    return Rule(f"in [{low:g}, {high:g}] {unit}", lambda x: low <= x <= high)
+
+
+def _magnitude(limit: float, unit: str) -> Rule:
+    return Rule(f"within +-{limit:g} {unit}".rstrip(), lambda x: abs(x) <= limit)
+
+
+LENGTH = _span(0.01, 1000.0, "m")
+OFFSET = _magnitude(1000.0, "m")
+MASS = _up_to(1e7, "kg")
+YAW_INERTIA = _up_to(1e10, "kg m^2")
+STIFFNESS = _up_to(1e10, "N/rad")
+FORCE = _magnitude(1e8, "N")
+MAX_FORCE = _up_to(1e8, "N")
+MAX_POWER = _up_to(1e9, "W")
+SPEED = _magnitude(100.0, "m/s")
+GAIN = _up_to(1e9, "N per m/s")
+INTEGRAL_GAIN = _span(0.0, 1e9, "N per m")
+TIME_CONSTANT = _span(1e-3, 1e6, "s")
+ACCELERATION = _up_to(1e3, "m/s^2")
+DRAFT_COEFFICIENT = _span(0.0, 1e8, "N per unit")
+DRAFT_SIZE = _up_to(1e3, "(factor, m or cm)")
+STEER_RATE = _up_to(100.0, "rad/s")
+GRAVITY = _up_to(100.0, "m/s^2")
+SMOOTHING = _span(1e-6, 10.0, "m/s")
+POSITION = _magnitude(1e7, "m")
+HEADING = _magnitude(1e3, "rad")
+TIME = _magnitude(validate.MAX_DURATION, "s")
+TOLERANCE = _up_to(1.0, "(relative or absolute)")
+MANEUVER_PARAM = _magnitude(validate.MAX_DURATION, "")  # s, rad, m/s, m: each manoeuvre checks its own
+
+
 CART_FIELDS = ("name", "length", "hitch_offset", "com_offset", "mass", "yaw_inertia", "max_hitch_angle",
                "cornering_stiffness")
 HITCH_ANGLE = Rule("in (0, pi]", lambda x: 0 < x <= math.pi)
@@ -227,13 +269,13 @@ def _cart(s: _Section) -> spec.Cart:
     """One cart: l_k > 0, a_k and c_k any finite, m_k > 0, J_k > 0 (MODEL.md, Geometry)."""
     return spec.Cart(
         name=s.text("name"),
-        length=s.number("length", POSITIVE),
-        hitch_offset=s.number("hitch_offset"),
-        com_offset=s.number("com_offset"),
-        mass=s.number("mass", POSITIVE),
-        yaw_inertia=s.number("yaw_inertia", POSITIVE),
+        length=s.number("length", LENGTH),
+        hitch_offset=s.number("hitch_offset", OFFSET),
+        com_offset=s.number("com_offset", OFFSET),
+        mass=s.number("mass", MASS),
+        yaw_inertia=s.number("yaw_inertia", YAW_INERTIA),
         max_hitch_angle=s.number("max_hitch_angle", HITCH_ANGLE, spec.Cart.max_hitch_angle),
-        cornering_stiffness=s.number("cornering_stiffness", POSITIVE, None),
+        cornering_stiffness=s.number("cornering_stiffness", STIFFNESS, None),
     )
 
 
@@ -262,22 +304,22 @@ def _traction(forces: _Section) -> spec.Traction:
     s.check_fields(_TRACTION_FIELDS[law])
     defaults = spec.Traction(law=law)
     if law == "constant":
-        return spec.Traction(law=law, force=s.number("force"))
+        return spec.Traction(law=law, force=s.number("force", FORCE))
     if law == "governor":
         return spec.Traction(
             law=law,
-            set_speed=s.number("set_speed"),
-            max_force=s.number("max_force", POSITIVE),
-            max_power=s.number("max_power", POSITIVE),
-            kp=s.number("kp", POSITIVE),
-            ki=s.number("ki", NON_NEGATIVE),
-            windup_time=s.number("windup_time", POSITIVE, defaults.windup_time),
+            set_speed=s.number("set_speed", SPEED),
+            max_force=s.number("max_force", MAX_FORCE),
+            max_power=s.number("max_power", MAX_POWER),
+            kp=s.number("kp", GAIN),
+            ki=s.number("ki", INTEGRAL_GAIN),
+            windup_time=s.number("windup_time", TIME_CONSTANT, defaults.windup_time),
         )
     return spec.Traction(
         law=law,
-        set_speed=s.number("set_speed", ANY, defaults.set_speed),
-        response_time=s.number("response_time", POSITIVE),
-        max_accel=s.number("max_accel", POSITIVE, defaults.max_accel),
+        set_speed=s.number("set_speed", SPEED, defaults.set_speed),
+        response_time=s.number("response_time", TIME_CONSTANT),
+        max_accel=s.number("max_accel", ACCELERATION, defaults.max_accel),
     )
 
 
@@ -301,12 +343,12 @@ def _draft(s: _Section, names: tuple[str, ...]) -> spec.Draft:
     """ASABE D497 draft F_i (A + B S + C S^2) W T at B_k: A, B, C >= 0; F_i, W, T > 0."""
     return spec.Draft(
         cart=_cart_name(s, names),
-        A=s.number("A", NON_NEGATIVE),
-        B=s.number("B", NON_NEGATIVE, 0.0),
-        C=s.number("C", NON_NEGATIVE, 0.0),
-        soil_factor=s.number("soil_factor", POSITIVE, 1.0),
-        width=s.number("width", POSITIVE, 1.0),
-        depth=s.number("depth", POSITIVE, 1.0),
+        A=s.number("A", DRAFT_COEFFICIENT),
+        B=s.number("B", DRAFT_COEFFICIENT, 0.0),
+        C=s.number("C", DRAFT_COEFFICIENT, 0.0),
+        soil_factor=s.number("soil_factor", DRAFT_SIZE, 1.0),
+        width=s.number("width", DRAFT_SIZE, 1.0),
+        depth=s.number("depth", DRAFT_SIZE, 1.0),
     )
 
 
@@ -319,8 +361,8 @@ def _actuator(top: _Section) -> spec.Actuator:
         return spec.Train.actuator
     s = top.section("steering_actuator", ("time_constant", "max_rate", "max_angle"), ("max_rate", "max_angle"))
     return spec.Actuator(
-        time_constant=s.number("time_constant", POSITIVE),
-        max_rate=s.number("max_rate", POSITIVE),
+        time_constant=s.number("time_constant", TIME_CONSTANT),
+        max_rate=s.number("max_rate", STEER_RATE),
         max_angle=s.number("max_angle", MAX_STEER),
     )
 
@@ -342,8 +384,8 @@ def _train(data: dict, source: str) -> spec.Train:
         rolling=tuple(_rolling(s, names) for s in forces.sections("rolling", rolling_fields)),
         draft=tuple(_draft(s, names) for s in forces.sections("draft", draft_fields)),
         actuator=_actuator(top),
-        gravity=top.number("gravity", POSITIVE, spec.GRAVITY),
-        smoothing_speed=top.number("smoothing_speed", POSITIVE, spec.Train.smoothing_speed),
+        gravity=top.number("gravity", GRAVITY, spec.GRAVITY),
+        smoothing_speed=top.number("smoothing_speed", SMOOTHING, spec.Train.smoothing_speed),
         source=source,
     )
 
@@ -380,7 +422,7 @@ def load_train_text(text: str, source: str) -> spec.Train:
 
 def _table(s: _Section, value_key: str, value_rule: Rule = ANY) -> spec.Table:
     """A piecewise-linear table {time: [...], VALUE_KEY: [...]}: time strictly increasing."""
-    time = s.numbers("time")
+    time = s.numbers("time", TIME)
     value = s.numbers(value_key, value_rule)
     if not time:
         s.fail("time", s.values["time"], "a non-empty list of numbers")
@@ -397,11 +439,11 @@ def _speed(top: _Section) -> Optional[spec.Table]:
         return None
     value = top.values["speed"]
     if _is_number(value):
-        return spec.Table(time=(0.0,), value=(top.number("speed"),))
+        return spec.Table(time=(0.0,), value=(top.number("speed", SPEED),))
     if not isinstance(value, dict):
         top.fail("speed", value, "a number or {table: {time: [...], speed: [...]}}")
     outer = top.section("speed", ("table",))
-    return _table(outer.section("table", ("time", "speed"), required=True), "speed")
+    return _table(outer.section("table", ("time", "speed"), required=True), "speed", SPEED)
 
 
 def _steering_limit(train: spec.Train) -> Rule:
@@ -422,10 +464,10 @@ def _initial(top: _Section, train: spec.Train) -> spec.Initial:
             rule = f"smaller in size than max_hitch_angle {cart.max_hitch_angle:.4g} rad of {cart.name}"
             s.fail_item("hitch_angles", i, rule)
     return spec.Initial(
-        x=s.number("x", ANY, 0.0),
-        y=s.number("y", ANY, 0.0),
-        heading=s.number("heading", ANY, 0.0),
-        speed=s.number("speed", ANY, 0.0),
+        x=s.number("x", POSITION, 0.0),
+        y=s.number("y", POSITION, 0.0),
+        heading=s.number("heading", HEADING, 0.0),
+        speed=s.number("speed", SPEED, 0.0),
         steering=s.number("steering", _steering_limit(train), 0.0),
         hitch_angles=hitch_angles,
     )
@@ -438,8 +480,8 @@ def _integrator(top: _Section, publish_rate: float) -> spec.Integrator:
     return spec.Integrator(
         method=s.choice("method", INTEGRATOR_METHODS, default.method),
         step=s.number("step", validate.step_rule(publish_rate), default.step),
-        rtol=s.number("rtol", POSITIVE, default.rtol),
-        atol=s.number("atol", POSITIVE, default.atol),
+        rtol=s.number("rtol", TOLERANCE, default.rtol),
+        atol=s.number("atol", TOLERANCE, default.atol),
         split_kinks=s.flag("split_kinks", default.split_kinks),
     )
 
@@ -468,7 +510,7 @@ def _steering(top: _Section, train: spec.Train, speed_at: Callable[[float], floa
     name = s.choice("maneuver", maneuvers.MANEUVERS)
     maneuver = maneuvers.MANEUVERS[name]
     p = s.section("params", maneuver.defaults, maneuver.angles)
-    params = {key: p.number(key) for key in p.values}
+    params = {key: p.number(key, MANEUVER_PARAM) for key in p.values}
     try:
         table = maneuvers.expand(
             name, params, speed_at=speed_at, wheelbase=train.carts[0].length, max_angle=train.actuator.max_angle

@@ -27,6 +27,9 @@ from .spec import Table
 # rad budget, so round-off never pushes it over).
 TOLERANCE = 5e-5
 
+# s: the shortest period of a sampled shape (its curvature (2 pi / period)^2 stays in floating point)
+SHORTEST = 1e-3
+
 # Parameters a manoeuvre may leave to the scene: the loader fills them when not given.
 SCENE_PARAMS = ("speed", "wheelbase")
 
@@ -78,12 +81,13 @@ def sine(amplitude: float = 0.1, period: float = 6.0, t0: float = 1.0, cycles: f
     amplitude (2 pi / period)^2 h^2 / 8 stays within TOLERANCE.
     """
     _require(t0 >= 0, "t0", t0, ">= 0")
-    _require(period > 0, "period", period, "> 0")
+    _require(period >= SHORTEST, "period", period, f"> 0 and at least {SHORTEST:g} s")
     _require(cycles > 0, "cycles", cycles, "> 0")
     omega = 2.0 * math.pi / period
     h = period / 16.0
-    if amplitude != 0.0:
-        h = min(h, math.sqrt(8.0 * TOLERANCE / (abs(amplitude) * omega**2)))
+    curvature = abs(amplitude) * omega**2  # 0 for a zero amplitude (or one that underflows)
+    if curvature > 0.0:
+        h = min(h, math.sqrt(8.0 * TOLERANCE / curvature))
     length = cycles * period
     samples = length / h + 1
     _require(samples <= MAX_TABLE, "cycles", cycles,
@@ -105,7 +109,7 @@ def lane_change(t0: float = 2.0, amplitude: float = 0.1, duration: float = 6.0) 
     zero (sin psi is odd about the half period), so the heading returns to its start while the
     lateral position has moved by about V^2 amplitude duration^2 / (2 pi l) to the left.
     """
-    _require(duration > 0, "duration", duration, "> 0")
+    _require(duration >= SHORTEST, "duration", duration, f"> 0 and at least {SHORTEST:g} s")
     return sine(amplitude=amplitude, period=duration, t0=t0, cycles=1.0)
 
 
