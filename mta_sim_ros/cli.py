@@ -3,7 +3,7 @@
 Exit codes: 0 done; 2 an input refused (a file, an argument, a parameter, a bag's metadata), said
 in one line ``mta COMMAND: FIELD: VALUE ... must be RULE`` (validate.py); 1 the work failed for
 another reason (a file that cannot be written, a bag that cannot be read); 3 ``mta run`` stopped
-by a validity guard.
+by a validity guard; 130 interrupted (Ctrl-C).
 """
 from __future__ import annotations
 
@@ -12,6 +12,9 @@ import importlib
 import sys
 
 from .validate import EXIT_INPUT, InputError, fail, one_line, output_file, show
+
+
+EXIT_INTERRUPTED = 130  # as a shell reports a process ended by SIGINT
 
 
 class Parser(argparse.ArgumentParser):
@@ -124,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as err:  # the commands say their own; this is the net under them
         print(f"mta {args.command}: {err}", file=sys.stderr)
         return EXIT_INPUT
+    except KeyboardInterrupt:  # Ctrl-C: what was written is closed or removed by the command's own finally
+        print(f"mta {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

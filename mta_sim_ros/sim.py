@@ -142,17 +142,18 @@ class Simulation:
         self.exact_actuator = self.split_kinks and self.compiled is not None and self.method in FIXED_METHODS
         self.stepper_step, self.stability_note = stable_step(
             self.method, self.step, self.tick, fast_modes(scene.train, actuator=not self.exact_actuator))
-        if self.stability_note:
-            if not substep:
-                raise UnstableStepError(self.stability_note.replace(
-                    "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
-            warnings.warn(self.stability_note, RuntimeWarning, stacklevel=2)
+        unstable = self.stability_note
+        if unstable and not substep:
+            raise UnstableStepError(unstable.replace(
+                "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
         if self.exact_actuator:
             self.stepper_step, resolution = resolved_step(self.stepper_step, self.tick,
                                                           scene.train.actuator.time_constant)
             if resolution:
                 self.stability_note = "; ".join(filter(None, (self.stability_note, resolution)))
-        self._check_steps_per_tick()
+        self._check_steps_per_tick()  # before the warning: a refused run says one thing
+        if unstable:
+            warnings.warn(unstable, RuntimeWarning, stacklevel=2)
         # the right-hand side of the adaptive methods and of the slip level
         if self.compiled is False:
             P = self.model.P

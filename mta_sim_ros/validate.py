@@ -365,7 +365,8 @@ def parse_yaml(text: str, source: str, error: type[InputError] = InputError) -> 
     except YamlLimit as err:
         raise error(fault_message(err.field, err.value, err.rule, line_of(err.mark), source)) from None
     except yaml.reader.ReaderError as err:
-        fail("yaml", f"character {err.character!r} at position {err.position}", "printable text", "document", source,
+        character = chr(err.character) if isinstance(err.character, int) else err.character
+        fail("yaml", f"character {character!r} at position {err.position}", "printable text", "document", source,
              error)
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
