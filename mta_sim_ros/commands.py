@@ -44,13 +44,16 @@ class CommandInput:
         self.last_problem = ""
 
     def take(self, x: float) -> float | None:
-        """Validate a received value; returns the value held from now on, or None if rejected."""
+        """Validate a received value; returns the value held from now on, or None if rejected.
+        ``last_problem`` says what is wrong with the last value received, so it clears when a
+        good one follows (the counts keep the history)."""
         self.count += 1
         value, problem = hold(x, self.low, self.high)
         if value is None:
             self.rejected += 1
             self.last_problem = f"{self.name}: {x} is {problem}; kept {self.value:.4g}"
             return None
+        self.last_problem = ""
         if problem:
             self.clamped += 1
             self.last_problem = f"{self.name}: {x:.4g} {problem}"

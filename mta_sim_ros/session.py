@@ -261,6 +261,7 @@ class RunSession:
         self.sim.reset()
         self.steering.value = self.scene.initial.steering
         self.speed.value = self.sim.v_set
+        self.steering.last_problem = self.speed.last_problem = ""  # a new run: its own commands
         self.halted = ""
         self.pacing.restart(self.now)
         path = self._start_bag()

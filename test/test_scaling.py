@@ -28,7 +28,7 @@ from mta_sim_ros.model import kernel
 from mta_sim_ros.model.dynamics import Model
 from mta_sim_ros.model.steady import steady_circle
 from mta_sim_ros.sim import Simulation, evaluate_outputs, run_scene
-from mta_sim_ros.tools.bench_scaling import bench_scene, default_train, scaled_train, steering_amplitude
+from mta_sim_ros.tools.bench.scaling import bench_scene, default_train, scaled_train, steering_amplitude
 
 import trains
 
@@ -150,7 +150,7 @@ def test_the_compiled_kernels_free_every_array_they_make():
         import math
         from numba.core.runtime import rtsys
         from mta_sim_ros.sim import Simulation
-        from mta_sim_ros.tools.bench_scaling import bench_scene, scaled_train
+        from mta_sim_ros.tools.bench.scaling import bench_scene, scaled_train
         sim = Simulation(bench_scene(scaled_train(3), 100.0, duration=1e9))
         assert sim.compiled
 

@@ -522,3 +522,22 @@ def test_a_tick_profile_hears_every_stage_of_every_tick_in_order(tmp_path):
     r.ticks(2)
     assert profile.events == one * 3
     r.s.close()
+
+
+def test_a_bad_command_warns_until_a_good_one_or_a_reset(tmp_path):
+    """/diagnostics says the current state: WARN while the last command received was refused or
+    clamped, OK again once a good one is taken (the counts remain), and a reset starts clean."""
+    r = Run(tmp_path)
+    r.ticks(1)
+    assert r.s.diagnostics().level == OK
+    r.s.command("steering_angle", math.nan)
+    assert r.s.diagnostics().level == WARN and "not finite" in r.s.diagnostics().message
+    r.s.command("steering_angle", 0.1)
+    status = r.s.diagnostics()
+    assert status.level == OK and status.values["steering_rejected"] == 1
+    r.s.command("steering_angle", 10.0)  # clamped to the actuator's limit
+    assert r.s.diagnostics().level == WARN and "clamped" in r.s.diagnostics().message
+    r.s.command("speed_setpoint", math.inf)
+    r.s.reset()
+    assert r.s.diagnostics().level == OK
+    r.s.close()

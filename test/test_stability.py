@@ -22,8 +22,9 @@ from mta_sim_ros.integrate.stability import (REAL_AXIS_LIMIT, UnstableStepError,
                                              stability_function, stable_step)
 from mta_sim_ros.model.guards import fast_modes
 from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.tools.bench_accuracy import (crossing, final_error, heading_error, hitch_points, position_error,
-                                              power_error, simulation, with_tolerances)
+from mta_sim_ros.tools.bench.runs import (final_error, heading_error, hitch_points, position_error, power_error,
+                                          simulation, with_tolerances)
+from mta_sim_ros.tools.bench.work_precision import crossing
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 RATE = 25.0  # Hz: a 40 ms tick lets the fixed step pass the actuator's limit

@@ -1,7 +1,8 @@
 """``mta bench fidelity``: each fidelity level's error against the highest (slip) and its cost,
 for every shipped scene, with the level ``auto`` picks; the slip level's convergence to the
 dynamic one as the cornering stiffness grows; which integrator survives the slip level's
-stiffness at low speed. Writes docs/fidelity.md.
+stiffness at low speed. Writes docs/fidelity.md. (Not node-mode runs of ``runs.py``: each level
+is run by ``sim.run_scene`` and compared on its outputs.)
 
 Errors (spec.Needs units): poses = largest distance of the same axle centre B_k or A_1 (m);
 speed = largest |dV| (m/s); power = RMS of dN over the RMS of N; hitch_angles = largest |dphi|
@@ -9,30 +10,29 @@ speed = largest |dV| (m/s); power = RMS of dN over the RMS of N; hitch_angles = 
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ..fidelity import LEVELS, choose, estimate
-from ..model.loader import load_scene
-from ..model.slip import DEFAULT_METHOD, SlipModel, axle_stiffness
-from ..sim import run_scene, start_state
-from ..validate import COUNT, number_arg, output_file, path_arg
+from ...validate import COUNT, number_arg, output_file, path_arg
+from .common import header_lines, table, write_report
 
+HELP = "each fidelity level's error against slip and its cost, per scene"
 SCENES = "config/scenes"
 OUTPUTS = ("poses", "speed", "power", "hitch_angles")
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
+def add_arguments(p) -> None:
     p.add_argument("--scenes", default=SCENES, help=f"folder of scene YAML files (default {SCENES})")
     p.add_argument("--repeats", type=number_arg(COUNT, int), default=2, help="timed runs per scene and level (default 2)")
     p.add_argument("--out", type=path_arg(output_file), default="docs/fidelity.md", help="Markdown report to write")
 
 
 def record(scene, level: str, **kw):
+    from ...sim import run_scene
+
     outs = []
     started = time.process_time()
     sim, err = run_scene(scene, on_output=outs.append, fidelity=level, **kw)
@@ -64,20 +64,19 @@ def errors(run, ref) -> dict[str, float]:
 
 def with_stiffness(scene, factor: float):
     """The scene with every axle's cornering stiffness multiplied by ``factor``."""
+    from ...model.slip import axle_stiffness
+
     _, rear = axle_stiffness(scene.train)
     carts = tuple(dataclasses.replace(c, cornering_stiffness=factor * float(r)) for c, r in zip(scene.train.carts, rear))
     # the tractor's front axle takes its cart's value: keep its own default ratio by scaling it too
     return dataclasses.replace(scene, train=dataclasses.replace(scene.train, carts=carts))
 
 
-def table(rows, header) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return lines
-
-
 def slip_eigenvalues(scene, speeds) -> list[tuple[float, float]]:
     """(V, largest |lambda|) of the slip level's Jacobian (central differences) on a straight line."""
+    from ...model.slip import SlipModel
+    from ...sim import start_state
+
     model = SlipModel(scene.train)
     out = []
     for v in speeds:
@@ -98,6 +97,8 @@ def slip_eigenvalues(scene, speeds) -> list[tuple[float, float]]:
 
 def low_speed_survival(scene, speed: float, duration: float = 5.0):
     """Run the slip level at a low speed with each method: (method, outcome, CPU s per sim s)."""
+    from ...sim import run_scene
+
     sc = dataclasses.replace(scene, duration=duration, speed=None,
                              initial=dataclasses.replace(scene.initial, speed=speed, hitch_angles=()))
     sc = dataclasses.replace(sc, train=dataclasses.replace(
@@ -115,11 +116,14 @@ def low_speed_survival(scene, speed: float, duration: float = 5.0):
     return rows
 
 
-def main(args: argparse.Namespace) -> int:
+def main(args) -> int:
+    from ...fidelity import LEVELS, choose, estimate
+    from ...model.loader import load_scene
+    from ...model.slip import DEFAULT_METHOD
+
     paths = sorted(Path(args.scenes).glob("*.yaml"))
-    lines = ["# Fidelity levels: error against the slip level and cost", "",
-             "Written by `mta bench fidelity` (mta_sim_ros/tools/bench_fidelity.py). Reference: the slip "
-             "level (the highest) with each train's default cornering stiffness, "
+    lines = header_lines("Fidelity levels: error against the slip level and cost", args) + [
+             "Reference: the slip level (the highest) with each train's default cornering stiffness, "
              "C_alpha = 5/rad x static axle load (model/slip.py, CORNERING_COEFFICIENT). Errors: poses = "
              "largest distance between the same axle centre (B_k or A_1), m; speed = largest |dV|, m/s; "
              "power = RMS(dN)/RMS(N); hitch = largest |dphi|, rad. Cost = CPU s per simulated s (least of "
@@ -175,7 +179,6 @@ def main(args: argparse.Namespace) -> int:
     surv = low_speed_survival(base, 0.1)
     lines += ["", "Slip level at V = 0.1 m/s for 5 s (step / largest step 0.01 s, tick 0.02 s):", ""]
     lines += table([(m, o, n, f"{c:.3f}") for m, o, n, c in surv], ("method", "outcome", "RHS evals", "CPU s/s"))
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+    write_report(args.out, lines)
     return 0

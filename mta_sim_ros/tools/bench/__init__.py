@@ -1,0 +1,41 @@
+"""``mta bench``: measurements, not tests. Each prints its figures and writes them to Markdown
+(``tick-parts`` only prints). One module a benchmark:
+
+realtime        the node at real-time factor 1, steered over DDS by a player process (realtime.py,
+                player.py; ``--stages``: the node's tick profile, stages.py)
+method          the integrators on one scene at the node's tick: error against cost, the default to choose
+work-precision  error against CPU time of every integrator on six scenes, node and free mode
+stability       where every method's steps stop being accurate, and where they blow up
+scaling         the node's tick against carts and publish rate, long runs, memory (scaling.py,
+                scaling_report.py)
+fidelity        each fidelity level's error against slip and its cost
+tick-parts      the tick's parts in two forms, side by side
+kinks           every method across the right-hand side's kinks, split and not
+
+Shared: common.py (report header and writing, scene paths, child processes' environment, timing
+side by side), runs.py (node-mode runs of a scene with held inputs, hitch points, errors against a
+reference). Every process started here that talks DDS gets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+and a domain of its own.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+
+#: the benchmarks' modules; each has HELP, add_arguments(parser) and main(args); the command is
+#: the module's name with '-' for '_'
+MODULES = ("realtime", "method", "work_precision", "stability", "scaling", "fidelity", "tick_parts", "kinks")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="bench", required=True, metavar="BENCH")
+    for name in MODULES:
+        module = importlib.import_module(f".{name}", __name__)
+        parser = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_arguments(parser)
+        parser.set_defaults(bench_func=module.main)
+
+
+def main(args: argparse.Namespace) -> int:
+    return args.bench_func(args)
