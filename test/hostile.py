@@ -53,6 +53,14 @@ def forge_bag(source: Path, out: Path, change: Callable[[dict], None],
     return out
 
 
+def recorded_run(folder: Path) -> Path:
+    """The bag of a 2 s `mta run` of short_scene in ``folder``."""
+    bag = folder / "run.mcap"
+    done = mta("run", "--scene", short_scene(folder), "--bag", bag, "--quiet")
+    assert done.returncode == 0, done.stderr
+    return bag
+
+
 def short_scene(folder: Path, duration: float = 2.0, rate: float = 50.0, train: Path | None = None,
                 name: str = "short") -> Path:
     """A lane change of ``duration`` s at ``rate`` Hz on the default train (or ``train``)."""

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hostile import CONFIG, assert_refused, mta, short_scene
+from hostile import CONFIG, assert_refused, mta, recorded_run, short_scene
 
 OLD_BAG = b"an earlier run's bag"
 
@@ -125,11 +125,8 @@ TOOL_FAULTS = [
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory) -> Path:
-    tmp = tmp_path_factory.mktemp("hostile_cli")
-    path = tmp / "run.mcap"
-    done = mta("run", "--scene", short_scene(tmp), "--bag", path, "--quiet")
-    assert done.returncode == 0, done.stderr
-    return path
+    """The bag the tools' cases read (and must leave as it is)."""
+    return recorded_run(tmp_path_factory.mktemp("hostile_cli"))
 
 
 @pytest.mark.parametrize("case,args,expected", TOOL_FAULTS, ids=[c[0] for c in TOOL_FAULTS])

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hostile import CONFIG, assert_refused, forge_bag, mta, short_scene
+from hostile import CONFIG, assert_refused, forge_bag, mta, recorded_run
 from mta_sim_ros.bag import BagWriter
 
 TRAIN = (CONFIG / "trains" / "default.yaml").read_text()
@@ -172,11 +172,7 @@ def test_a_renamed_node_takes_only_its_own_sections(tmp_path):
 @pytest.fixture(scope="module")
 def run_bag(tmp_path_factory) -> Path:
     """A 2 s run of `mta run`, the bag every forged one starts from."""
-    tmp = tmp_path_factory.mktemp("hostile_bag")
-    bag = tmp / "run.mcap"
-    done = mta("run", "--scene", short_scene(tmp), "--bag", bag, "--quiet")
-    assert done.returncode == 0, done.stderr
-    return bag
+    return recorded_run(tmp_path_factory.mktemp("hostile_bag"))
 
 
 def put(**values):
