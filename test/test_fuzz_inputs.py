@@ -6,7 +6,9 @@
 - the node's params file reader, on random mutations of config/sim.yaml;
 - the node's parameters through the ROS-free path: every declared range (and past it) sampled
   at start (``session.RunSession(cfg, ...)``) and live (``RunSession.set_parameters``): accepted
-  and the session still ticks, or refused with a reason; never an exception.
+  and the session still ticks, or refused with a reason; never an exception;
+- and, not sampled, every number of the default train and scene at every extreme scale (what a
+  random mutation reaches too rarely: a 1e-300 m wheelbase).
 
 Runs are bounded (max_examples, deadline) and use no example database."""
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 
 import yaml
 from hypothesis import HealthCheck, event, given, settings
+from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
 from mta_sim_ros.integrate import IntegrationError
@@ -99,6 +102,12 @@ def dumped(value) -> str:
 documents = st.one_of(values.map(dumped), st.text(max_size=200))
 
 
+def seen(what: str) -> None:
+    """Count an outcome in Hypothesis' statistics (--hypothesis-show-statistics), when in one."""
+    if currently_in_test_context():
+        event(what)
+
+
 def assert_one_line(err: Exception) -> None:
     message = str(err)
     assert message and "\n" not in message and " must be " in message, message
@@ -113,9 +122,9 @@ def load_or_refuse(load, text: str):
         loaded = load(text)
     except loader.SpecError as err:
         assert_one_line(err)
-        event("refused")
+        seen("refused")
         return None
-    event("loaded")
+    seen("loaded")
     return loaded
 
 
@@ -151,16 +160,16 @@ def ticks_or_stops(scene: spec.Scene, ticks: int = 5) -> None:
             sim = Simulation(scene)
         except ValueError as err:  # InputError is one
             assert str(err) and "\n" not in str(err)
-            event("simulation refused")
+            seen("simulation refused")
             return
     for _ in range(ticks):
         try:
             sim.advance(*sim.scheduled_inputs(sim.t))
         except (ModelValidityError, IntegrationError):
-            event("stopped by a guard")
+            seen("stopped by a guard")
             return
         sim.outputs()
-    event("ticked")
+    seen("ticked")
 
 
 @RUNS
@@ -233,7 +242,7 @@ def started(cfg: dict, clock: FakeClock) -> RunSession | None:
                               background=False, compute_clock=clock, cpu_clock=clock)
     except ConfigError as err:
         assert str(err).startswith("parameter ") and "\n" not in str(err), str(err)
-        event("refused at start")
+        seen("refused at start")
         return None
 
 
@@ -256,7 +265,7 @@ def test_parameters_at_start_and_live_are_taken_or_refused(cfg, changes):
             before = dict(session.cfg)
             reason = session.set_parameters({name: value})
             assert isinstance(reason, str) and "\n" not in reason
-            event("refused live" if reason else "taken live")
+            seen("refused live" if reason else "taken live")
             if reason:
                 assert session.cfg == before, reason  # all or nothing
             tick(session, clock, 2)
@@ -266,3 +275,57 @@ def test_parameters_at_start_and_live_are_taken_or_refused(cfg, changes):
         tick(session, clock, 1)
     finally:
         session.close()
+
+
+# -- every number of the default train and scene at every scale ------------------------------
+
+
+#: the factors of the sweep below: zero, the other sign, far up and down, past float's reach
+EXTREMES = [0.0, -1.0, 1e-6, 1e6, 1e-300, 1e300]
+
+
+def numeric_paths(data) -> list[tuple]:
+    """The path of each number in ``data``, the first of each field (carts[2].mass stands for
+    carts[1].mass too)."""
+    found = {}
+    for at in paths(data):
+        value = _at(data, at)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            found.setdefault(tuple(k if isinstance(k, str) else 0 for k in at), at)
+    return list(found.values())
+
+
+def _at(data, at: tuple):
+    for key in at:
+        data = data[key]
+    return data
+
+
+def scaled(data, at: tuple, factor: float):
+    """A copy of ``data`` with the number at ``at`` multiplied by ``factor``."""
+    out = copy.deepcopy(data)
+    parent = _at(out, at[:-1])
+    parent[at[-1]] = parent[at[-1]] * factor
+    return out
+
+
+def test_every_number_of_the_default_files_at_every_scale_loads_and_runs_or_is_refused():
+    """Not sampled: each number of the default train and of a scene on it, scaled by each of
+    EXTREMES: a one-line refusal, or a scene that builds its simulation (or is refused by a
+    rule) and ticks or stops by a guard."""
+    train_data = yaml.safe_load((CONFIG / "trains" / "default.yaml").read_text())
+    scene_text = (CONFIG / "scenes" / "lane_change.yaml").read_text()
+    scene_data = yaml.safe_load(scene_text)
+    for at in numeric_paths(train_data):
+        for factor in EXTREMES:
+            train = load_or_refuse(lambda t: loader.load_train_text(t, "scaled.yaml"),
+                                   dumped(scaled(train_data, at, factor)))
+            scene = train and load_or_refuse(lambda t: loader.load_scene_text(t, "lane_change.yaml", train), scene_text)
+            if scene is not None:
+                ticks_or_stops(scene, ticks=2)
+    for at in numeric_paths(scene_data):
+        for factor in EXTREMES:
+            scene = load_or_refuse(lambda t: loader.load_scene_text(t, "scaled.yaml", DEFAULT_TRAIN),
+                                   dumped(scaled(scene_data, at, factor)))
+            if scene is not None:
+                ticks_or_stops(scene, ticks=2)
