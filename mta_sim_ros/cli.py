@@ -1,9 +1,28 @@
-"""``mta``: the package's one command-line entry, with subcommands."""
+"""``mta``: the package's one command-line entry, with subcommands.
+
+Exit codes: 0 done; 2 an input refused (a file, an argument, a parameter, a bag's metadata), said
+in one line ``mta COMMAND: FIELD: VALUE ... must be RULE`` (validate.py); 1 the work failed for
+another reason (a file that cannot be written, a bag that cannot be read); 3 ``mta run`` stopped
+by a validity guard; 130 interrupted (Ctrl-C).
+"""
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+
+from .validate import EXIT_INPUT, InputError, fail, one_line, output_file, show
+
+
+EXIT_INTERRUPTED = 130  # as a shell reports a process ended by SIGINT
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with its faults in one line (no usage block): ``mta run: argument --rate: ...``,
+    exit code 2. Subcommands' parsers are of this class too (argparse makes them so)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_INPUT, f"{self.prog}: {one_line(message)}\n")
 
 
 def check_main(args: argparse.Namespace) -> int:
@@ -19,9 +38,11 @@ def recover_main(args: argparse.Namespace) -> int:
 
     from .bag import BagError, PathRefused, recover
 
-    out = args.output or str(Path(args.bag).with_suffix(".recovered.mcap"))
+    out = output_file(args.output or str(Path(args.bag).with_suffix(".recovered.mcap")), "--output")
+    if out.exists() and Path(args.bag).exists() and out.samefile(args.bag):
+        fail("--output", show(str(out)), "another file than the bag it recovers")
     try:
-        report = recover(args.bag, out)
+        report = recover(args.bag, str(out))
     except PathRefused as err:
         print(f"mta recover: {err}", file=sys.stderr)
         return 2
@@ -65,7 +86,7 @@ def selected_command(argv: list[str]) -> str | None:
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     """The ``mta`` parser; the tool ``selected`` gets its own arguments (see add_tool)."""
 
-    parser = argparse.ArgumentParser(prog="mta", description="Multi-element machine-tractor unit simulator (ROS 2).")
+    parser = Parser(prog="mta", description="Multi-element machine-tractor unit simulator (ROS 2).")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     add_tool(sub, "run", "simulate a scene offline, as fast as possible, into an MCAP bag", selected)
@@ -106,7 +127,14 @@ def main(argv: list[str] | None = None) -> int:
     split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
     args = build_parser(selected_command(argv[:split])).parse_args(argv[:split])
     args.ros_args = argv[split:]
-    return args.func(args)
+    try:
+        return args.func(args)
+    except InputError as err:  # the commands say their own; this is the net under them
+        print(f"mta {args.command}: {err}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:  # Ctrl-C: what was written is closed or removed by the command's own finally
+        print(f"mta {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

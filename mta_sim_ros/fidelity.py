@@ -89,7 +89,7 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     set-point, the governor balancing the resistances); alpha_0 the same at the scene's own
     initial state (hitch angles that are not steady)."""
     from .model.slip import SlipModel, no_slip_tyre_forces
-    from .model.steady import SteadyStateError, steady_circle
+    from .model.steady import STRAIGHT, SteadyStateError, steady_circle
 
     tr = scene.train
     model = SlipModel(tr)
@@ -113,7 +113,7 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
         y = np.zeros(L.size)
         y[L.steering], y[L.speed] = psi, v
         try:
-            hitch = steady_circle(tr, psi).hitch_angles if psi != 0.0 else (0.0,) * (tr.n - 1)
+            hitch = steady_circle(tr, psi).hitch_angles if abs(psi) > STRAIGHT else (0.0,) * (tr.n - 1)
         except SteadyStateError:
             alphas.append(math.inf)
             continue

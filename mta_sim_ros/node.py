@@ -33,7 +33,7 @@ from std_srvs.srv import SetBool, Trigger
 
 from . import ros_msgs
 from .ros_msgs import QOS
-from .params import PARAMS, ConfigError, Param
+from .params import PARAMS, ConfigError, Param, check_ros_args
 from .session import RunSession
 from .timing import reserve_cpu
 from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC
@@ -116,7 +116,13 @@ def main(argv: list[str] | None = None, profile=None) -> int:
     SIGINT and SIGTERM end the spin loop between callbacks, then the bag is finished and the
     context shut down in that order (rclpy's own handlers would invalidate the context while a
     callback may still be writing)."""
-    rclpy.init(args=sys.argv if argv is None else argv, signal_handler_options=SignalHandlerOptions.NO)
+    argv = sys.argv if argv is None else argv
+    try:
+        check_ros_args(argv)  # a params file's faults in one line, before rcl parses it
+    except ConfigError as err:
+        print(f"sim_node: {err}", file=sys.stderr)
+        return 2
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     stop = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: stop.append(signum))

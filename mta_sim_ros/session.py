@@ -32,6 +32,7 @@ from .recorder import RunRecorder
 from .runlog import run_metadata, tick_figures, tick_line
 from .sim import Simulation
 from .timing import TickStats
+from .validate import InputError
 from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC, qualified
 from .watchdog import SteeringWatchdog
 
@@ -106,6 +107,8 @@ class RunSession:
             raise ConfigError(f"parameter scene_file: {err}") from None
         try:
             self.sim = self._simulation()
+        except InputError as err:  # a tick that would not end (validate.MAX_STEPS_PER_TICK)
+            raise ConfigError(f"parameter integrator_step: {err}") from None
         except ValueError as err:  # a level this train cannot run (kinematic without a commanded speed)
             raise ConfigError(f"parameter fidelity: {err}") from None
         self.cart_names = [c.name for c in self.scene.train.carts]

@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 
+from . import validate
 from .fidelity import Choice, choose, make_model
 from .integrate import IntegrationError, make_stepper
 from .integrate.stability import UnstableStepError, resolved_step, stable_step
@@ -141,16 +142,18 @@ class Simulation:
         self.exact_actuator = self.split_kinks and self.compiled is not None and self.method in FIXED_METHODS
         self.stepper_step, self.stability_note = stable_step(
             self.method, self.step, self.tick, fast_modes(scene.train, actuator=not self.exact_actuator))
-        if self.stability_note:
-            if not substep:
-                raise UnstableStepError(self.stability_note.replace(
-                    "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
-            warnings.warn(self.stability_note, RuntimeWarning, stacklevel=2)
+        unstable = self.stability_note
+        if unstable and not substep:
+            raise UnstableStepError(unstable.replace(
+                "; sub-stepping at", "; refusing to run it (substep=True would sub-step at") + ")")
         if self.exact_actuator:
             self.stepper_step, resolution = resolved_step(self.stepper_step, self.tick,
                                                           scene.train.actuator.time_constant)
             if resolution:
                 self.stability_note = "; ".join(filter(None, (self.stability_note, resolution)))
+        self._check_steps_per_tick()  # before the warning: a refused run says one thing
+        if unstable:
+            warnings.warn(unstable, RuntimeWarning, stacklevel=2)
         # the right-hand side of the adaptive methods and of the slip level
         if self.compiled is False:
             P = self.model.P
@@ -165,6 +168,17 @@ class Simulation:
             self._warm_up()
             self.compile_time = time.perf_counter() - t_c
             self.compiled_note += f", first call {self.compile_time:.3g} s"
+
+    def _check_steps_per_tick(self) -> None:
+        """Refuse a tick of more than validate.MAX_STEPS_PER_TICK steps (a step given that short,
+        or cut that short for stability by a stiff train): such a tick would not end."""
+        n = validate.steps_per_tick(self.tick, self.stepper_step)
+        if n > validate.MAX_STEPS_PER_TICK:
+            why = f" ({self.stability_note})" if self.stability_note else ""
+            raise validate.InputError(
+                f"integrator step: {self.stepper_step:.4g} s{why} must be at least tick / "
+                f"{validate.MAX_STEPS_PER_TICK} = {self.tick / validate.MAX_STEPS_PER_TICK:.4g} s: it takes {n:.4g} "
+                f"steps per {self.tick:g} s tick")
 
     def _warm_up(self) -> None:
         y = np.ascontiguousarray(self.y, dtype=np.float64)

@@ -196,7 +196,7 @@ GOVERNOR = "forces.traction"
 FAULTS = [
     # (file, mutation, expected field, value, location, rule substrings)
     ("train", put("carts.1.mass", -3), "mass", "-3", "carts[1]", "> 0"),
-    ("train", put("carts.0.length", 0), "length", "0", "carts[0]", "> 0"),
+    ("train", put("carts.0.length", 0), "length", "0", "carts[0]", "in [0.01, 1000] m"),
     ("train", put("carts.2.yaw_inertia", -1.0), "yaw_inertia", "-1.0", "carts[2]", "> 0"),
     ("train", drop("carts.2.yaw_inertia"), "yaw_inertia", "(missing)", "carts[2]", "given"),
     ("train", rename("carts.0.length", "lenght"), "lenght", "3.0", "carts[0]", "unknown field; expected one of name, length"),
@@ -215,8 +215,8 @@ FAULTS = [
     ("train", put("forces.draft.0.cart", "drill"), "cart", "'drill'", "forces.draft[0]", "one of tractor, air_cart, seeder"),
     ("train", put("forces.rolling.1.coefficient", 1.0), "coefficient", "1.0", "forces.rolling[1]", "in [0, 1)"),
     ("train", put("forces.rolling.1.coefficient", -0.1), "coefficient", "-0.1", "forces.rolling[1]", "in [0, 1)"),
-    ("train", put("forces.draft.0.A", -1), "A", "-1", "forces.draft[0]", ">= 0"),
-    ("train", put("forces.draft.0.C", -0.5), "C", "-0.5", "forces.draft[0]", ">= 0"),
+    ("train", put("forces.draft.0.A", -1), "A", "-1", "forces.draft[0]", "in [0, 1e+08]"),
+    ("train", put("forces.draft.0.C", -0.5), "C", "-0.5", "forces.draft[0]", "in [0, 1e+08]"),
     ("train", put("forces.draft.0.width", 0), "width", "0", "forces.draft[0]", "> 0"),
     ("train", put("forces.draft.0.depth", -1), "depth", "-1", "forces.draft[0]", "> 0"),
     ("train", put("forces.draft.0.soil_factor", 0), "soil_factor", "0", "forces.draft[0]", "> 0"),
@@ -225,13 +225,13 @@ FAULTS = [
     ("train", put(GOVERNOR, {"law": "constant"}), "force", "(missing)", GOVERNOR, "given"),
     ("train", put(GOVERNOR, {"law": "constant", "force": 5e4, "kp": 1}), "kp", "1", GOVERNOR, "unknown field; expected one of law, force"),
     ("train", put(GOVERNOR, {"law": "prescribed_speed", "set_speed": 3}), "response_time", "(missing)", GOVERNOR, "given"),
-    ("train", put(GOVERNOR, {"law": "prescribed_speed", "response_time": 0}), "response_time", "0", GOVERNOR, "> 0"),
+    ("train", put(GOVERNOR, {"law": "prescribed_speed", "response_time": 0}), "response_time", "0", GOVERNOR, "in [0.001, 1e+06] s"),
     ("train", put(f"{GOVERNOR}.kp", 0), "kp", "0", GOVERNOR, "> 0"),
-    ("train", put(f"{GOVERNOR}.ki", -1), "ki", "-1", GOVERNOR, ">= 0"),
+    ("train", put(f"{GOVERNOR}.ki", -1), "ki", "-1", GOVERNOR, "in [0, 1e+09]"),
     ("train", put(f"{GOVERNOR}.max_force", 0), "max_force", "0", GOVERNOR, "> 0"),
     ("train", drop(f"{GOVERNOR}.max_power"), "max_power", "(missing)", GOVERNOR, "given"),
     ("train", drop(f"{GOVERNOR}.set_speed"), "set_speed", "(missing)", GOVERNOR, "given"),
-    ("train", put("steering_actuator.time_constant", 0), "time_constant", "0", "steering_actuator", "> 0"),
+    ("train", put("steering_actuator.time_constant", 0), "time_constant", "0", "steering_actuator", "in [0.001, 1e+06] s"),
     ("train", put("steering_actuator.max_rate", -1), "max_rate", "-1", "steering_actuator", "> 0"),
     ("train", put("steering_actuator.max_angle", 1.6), "max_angle", "1.6", "steering_actuator", "in (0, pi/2)"),
     ("train", rename("steering_actuator.max_angle", "max_angel"), "max_angel", "0.7", "steering_actuator", "unknown field"),
@@ -242,18 +242,18 @@ FAULTS = [
     ),
     ("train", put("steering_actuator.max_angle_deg", 40), "max_angle_deg", "40", "steering_actuator", "given alone: max_angle"),
     ("train", put("gravity", 0), "gravity", "0", "top level", "> 0"),
-    ("train", put("smoothing_speed", -0.05), "smoothing_speed", "-0.05", "top level", "> 0"),
+    ("train", put("smoothing_speed", -0.05), "smoothing_speed", "-0.05", "top level", "in [1e-06, 10] m/s"),
     ("train", put("colour", "red"), "colour", "'red'", "top level", "unknown field"),
     ("scene", put("duration", 0), "duration", "0", "top level", "> 0"),
     ("scene", drop("duration"), "duration", "(missing)", "top level", "given"),
     ("scene", rename("duration", "duraton"), "duraton", "60", "top level", "unknown field"),
     ("scene", put("train", "../trains/nope.yaml"), "train", "'../trains/nope.yaml'", "top level", "not found"),
     ("scene", put("integrator.method", "rk5"), "method", "'rk5'", "integrator", "one of euler, heun, ralston, kutta3, rk4, rk38, RK45"),
-    ("scene", put("integrator.step", 0.05), "step", "0.05", "integrator", "<= 1/publish_rate = 0.02 s"),
-    ("scene", put("integrator.step", 0), "step", "0", "integrator", "> 0"),
+    ("scene", put("integrator.step", 0.05), "step", "0.05", "integrator", "1/publish_rate] = [2e-06, 0.02] s"),
+    ("scene", put("integrator.step", 0), "step", "0", "integrator", "in [1/publish_rate / 10000, 1/publish_rate]"),
     ("scene", put("integrator.rtol", 0), "rtol", "0", "integrator", "> 0"),
     ("scene", put("integrator.atol", -1e-9), "atol", "-1e-09", "integrator", "> 0"),
-    ("scene", put("publish_rate", 0), "publish_rate", "0", "top level", "> 0"),
+    ("scene", put("publish_rate", 0), "publish_rate", "0", "top level", "in [1, 1000] Hz"),
     ("scene", put("steering.table.time", [0, 6, 5]), "time", "[0, 6, 5]", "steering.table", "strictly increasing"),
     ("scene", put("steering.table.time", [0, 5]), "angle", "[0, 0, 0.2]", "steering.table", "as long as time (2 entries)"),
     ("scene", put("steering.table.angle", [0, 0, 0.9]), "angle[2]", "0.9", "steering.table", "within +-max_angle"),
@@ -391,7 +391,7 @@ def test_check_files_fault_prints_one_line_and_returns_2(tmp_path, capsys):
     captured = capsys.readouterr()
     assert status == 2
     assert captured.out.splitlines() == [f"ok: {CONFIG / 'trains' / 'default.yaml'}"]
-    assert captured.err.splitlines() == [f"error: mass: -3 in carts[1] of {train_path} must be > 0"]
+    assert captured.err.splitlines() == [f"error: mass: -3 in carts[1] of {train_path} must be > 0 and <= 1e+07 kg"]
     assert "Traceback" not in captured.err
 
 

@@ -456,7 +456,7 @@ def test_markers_go_out_every_publish_rate_over_marker_rate_ticks(run):
     (dict(publish_rate=-5.0), "parameter publish_rate: -5.0 must be in [1, 1000]"),
     (dict(integrator_method="RK99"), "parameter integrator_method: 'RK99' must be one of"),
     (dict(scene_file="/nowhere/scene.yaml"), "parameter scene_file: "),
-    (dict(publish_rate=10.0, integrator_step=0.5), "parameter integrator_step: 0.5 must not exceed the tick"),
+    (dict(publish_rate=10.0, integrator_step=0.5), "parameter integrator_step: 0.5 must be in [1/publish_rate / 10000"),
     (dict(watchdog_action="left"), "parameter watchdog_action: 'left' must be one of"),
 ])
 def test_an_invalid_configuration_is_one_config_error(tmp_path, bad, expected):

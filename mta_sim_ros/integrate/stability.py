@@ -13,8 +13,7 @@ stable for any decaying mode.
 """
 from __future__ import annotations
 
-import math
-
+from ..validate import steps_per_tick
 from .tableau import TABLEAUX
 
 #: each fixed-step method's real-axis stability limit, from its tableau
@@ -35,7 +34,7 @@ def stability_function(method: str, z: complex) -> complex:
 
 def effective_step(step: float, tick: float) -> float:
     """The step a FixedStep really takes over one tick: the tick split in ceil(tick / step) parts."""
-    return tick / max(1, math.ceil(tick / step - 1e-9))
+    return tick / steps_per_tick(tick, step)
 
 
 def stable_step(method: str, step: float, tick: float, modes, safety: float = SAFETY):
@@ -54,7 +53,7 @@ def stable_step(method: str, step: float, tick: float, modes, safety: float = SA
     note = (f"{method} with step {h:.4g} s is unstable for this model: {what} decays at "
             f"{rate:.4g} 1/s, and {method} is stable only for step < {REAL_AXIS_LIMIT[method]:.4g} / {rate:.4g} 1/s "
             f"= {limit:.4g} s (its real-axis stability limit); sub-stepping at "
-            f"{effective_step(new, tick):.4g} s ({math.ceil(tick / new - 1e-9)} steps per {tick:.4g} s tick)")
+            f"{effective_step(new, tick):.4g} s ({steps_per_tick(tick, new)} steps per {tick:.4g} s tick)")
     return new, note
 
 
@@ -72,6 +71,6 @@ def resolved_step(step: float, tick: float, time_constant: float, per: int = RES
         return step, None
     note = (f"step {effective_step(step, tick):.4g} s is longer than the steering actuator's time constant "
             f"{time_constant:g} s / {per}; sub-stepping at {effective_step(limit, tick):.4g} s "
-            f"({math.ceil(tick / limit - 1e-9)} steps per {tick:.4g} s tick) so that the train follows the "
+            f"({steps_per_tick(tick, limit)} steps per {tick:.4g} s tick) so that the train follows the "
             f"actuator's motion")
     return limit, note

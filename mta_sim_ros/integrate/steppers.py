@@ -28,6 +28,7 @@ import numpy as np
 
 from ..model import kernel
 from ..model.spec import INTEGRATOR_METHODS
+from ..validate import MAX_STEPS_PER_TICK
 from .tableau import TABLEAUX, Tableau
 
 Fun = Callable[[float, np.ndarray], np.ndarray]
@@ -147,7 +148,14 @@ class Adaptive:
         ``high`` (the held branches: which are > 0), stop after the first step that ends with one
         on the other side and return (t, y) before that step and the switching values after it;
         else None."""
+        steps = 0
         while solver.status == "running":
+            steps += 1
+            if steps > MAX_STEPS_PER_TICK:  # a model too stiff for the method: the tick would not end
+                self.nfev += solver.nfev
+                raise IntegrationError(f"{self.method} took more than {MAX_STEPS_PER_TICK} steps in one tick at "
+                                       f"t = {solver.t:.6g} s (last step {solver.step_size or 0:.3g} s): the model "
+                                       f"is too stiff for it")
             t_before, y_before = solver.t, solver.y.copy()
             message = solver.step()
             if solver.status == "failed":

@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import sys
-from dataclasses import dataclass
 from typing import Any, Callable, Iterable, NoReturn, Optional, Union
 
 import numpy as np
-import yaml
 
+from .. import validate
+from ..validate import ANY, NON_NEGATIVE, POSITIVE, Rule
 from . import maneuvers
 from . import spec
 
@@ -31,90 +30,31 @@ INTEGRATOR_METHODS = spec.INTEGRATOR_METHODS
 TRACTION_LAWS = ("constant", "governor", "prescribed_speed")
 
 
-class SpecError(ValueError):
+class SpecError(validate.InputError):
     """A train or scene file breaks a rule; the message says which field, where and why."""
 
 
 # --------------------------------------------------------------------------- reading YAML
 
 
-class _Loader(yaml.SafeLoader):
-    """Safe YAML loader that rejects repeated keys and reads ``1e-8`` as a float."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
-                if key_node.value in seen:
-                    raise _RepeatedKey(key_node.value, key_node.start_mark)
-                seen.add(key_node.value)
-        return super().construct_mapping(node, deep)
-
-
-class _RepeatedKey(yaml.YAMLError):
-    def __init__(self, key: str, mark):
-        super().__init__(key)
-        self.key, self.mark = key, mark
-
-
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
-
-
 def _fail(field: str, value: str, where: str, source: str, rule: str) -> NoReturn:
-    raise SpecError(f"{field}: {value} in {where} of {source} must be {rule}")
+    raise SpecError(validate.fault_message(field, value, rule, where, source))
 
 
 def _read(path: Union[str, os.PathLike]) -> tuple[dict, str]:
-    """The top-level mapping of a YAML file, and the path as given (for messages)."""
+    """The top-level mapping of a YAML file, and the path as given (for messages); the file's
+    size, nesting and aliases are bounded (validate.py)."""
     source = str(path)
-    try:
-        with open(path, encoding="utf-8") as stream:
-            return _parse(stream, source)
-    except FileNotFoundError:
-        _fail("file", "not found", "document", source, "an existing YAML file")
-    except (OSError, UnicodeDecodeError) as error:
-        _fail("file", f"unreadable ({error})", "document", source, "a readable UTF-8 YAML file")
+    return validate.read_mapping(path, SpecError), source
 
 
-def _parse(stream, source: str) -> tuple[dict, str]:
-    """The top-level mapping of a YAML document (a text or an open file), and its source."""
-    try:
-        data = yaml.load(stream, Loader=_Loader)
-    except _RepeatedKey as error:
-        _fail(error.key, "given twice", _line(error.mark), source, "given once")
-    except yaml.MarkedYAMLError as error:
-        _fail("yaml", error.problem, _line(error.problem_mark), source, "valid YAML syntax")
-    except yaml.YAMLError as error:
-        _fail("yaml", str(error).replace("\n", " "), "document", source, "valid YAML syntax")
-    if data is None:
-        _fail("file", "empty", "document", source, "a YAML mapping of fields")
-    if not isinstance(data, dict):
-        _fail("file", f"a {type(data).__name__}", "document", source, "a YAML mapping of fields")
-    return data, source
-
-
-def _line(mark) -> str:
-    return f"line {mark.line + 1}, column {mark.column + 1}"
+def _parse(text: str, source: str) -> tuple[dict, str]:
+    """The top-level mapping of a YAML text, and its source."""
+    return validate.parse_mapping(text, source, SpecError), source
 
 
 # --------------------------------------------------------------------------- rules and fields
 
-
-@dataclass(frozen=True)
-class Rule:
-    """A condition on a number and the words that finish "must be ..."."""
-
-    text: str
-    test: Callable[[float], bool]
-
-
-ANY = Rule("finite", lambda x: True)
-POSITIVE = Rule("> 0", lambda x: x > 0)
-NON_NEGATIVE = Rule(">= 0", lambda x: x >= 0)
 
 _REQUIRED = object()  # default meaning "the field must be given"
 
@@ -126,14 +66,8 @@ class _Missing:
         return "(missing)"
 
 
-def _show(value: Any) -> str:
-    """A value as it would read in the YAML, shortened to keep messages on one line."""
-    text = repr(value) if isinstance(value, str) else str(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+_show = validate.show
+_is_number = validate.is_number
 
 
 class _Section:
@@ -160,8 +94,9 @@ class _Section:
         allowed = tuple(fields)
         for key, value in self.values.items():
             if key not in allowed:
-                expected = ", ".join(f"{k}[_deg]" if k in self.angles else k for k in allowed)
-                self.fail(str(key), value, f"removed or renamed: unknown field; expected one of {expected}")
+                spelled = [f"{k}[_deg]" if k in self.angles else k for k in allowed]
+                name = key if isinstance(key, str) and len(key) <= validate.SHOW_WIDTH else _show(key)
+                self.fail(name, value, validate.unknown_name_rule(key, allowed, spelled=spelled))
 
     def _convert_degrees(self, key: str) -> None:
         deg_key = key + "_deg"
@@ -205,10 +140,9 @@ class _Section:
         if key not in self.values:
             return self._absent(key, default, "a number" if rule is ANY else f"a number {rule.text}")
         value = self.values[key]
-        if not _is_number(value):
-            self.fail(key, value, "a number")
-        if not math.isfinite(value):
-            self.fail(key, value, "a finite number")
+        problem = validate.check_number(value, ANY)
+        if problem:
+            self.fail(key, value, problem)
         if not rule.test(value):
             self.fail(key, value, rule.text)
         return float(value)
@@ -220,8 +154,10 @@ class _Section:
         value = self.values[key]
         if not isinstance(value, list):
             self.fail(key, value, "a list of numbers")
+        if len(value) > validate.MAX_TABLE:
+            self.fail(key, value, f"a list of at most {validate.MAX_TABLE} numbers (it has {len(value)})")
         for i, item in enumerate(value):
-            if not _is_number(item) or not math.isfinite(item) or not rule.test(item):
+            if not validate.is_finite(item) or not rule.test(item):
                 self.fail_item(key, i, "a finite number" if rule is ANY else f"a finite number {rule.text}")
         return tuple(float(item) for item in value)
 
@@ -282,6 +218,48 @@ class _Section:
 
 # --------------------------------------------------------------------------- trains
 
+# --------------------------------------------------------------------------- ranges
+# Every number has a range, orders of magnitude beyond any machine, so that no accepted train or
+# scene overflows the model's arithmetic (a ratio a_k / l_k squared) or makes it too stiff to step.
+
+
+def _up_to(high: float, unit: str) -> Rule:
+    return Rule(f"> 0 and <= {high:g} {unit}", lambda x: 0 < x <= high)
+
+
+def _span(low: float, high: float, unit: str) -> Rule:
+    return Rule(f"in [{low:g}, {high:g}] {unit}", lambda x: low <= x <= high)
+
+
+def _magnitude(limit: float, unit: str) -> Rule:
+    return Rule(f"within +-{limit:g} {unit}".rstrip(), lambda x: abs(x) <= limit)
+
+
+LENGTH = _span(0.01, 1000.0, "m")
+OFFSET = _magnitude(1000.0, "m")
+MASS = _up_to(1e7, "kg")
+YAW_INERTIA = _up_to(1e10, "kg m^2")
+STIFFNESS = _up_to(1e10, "N/rad")
+FORCE = _magnitude(1e8, "N")
+MAX_FORCE = _up_to(1e8, "N")
+MAX_POWER = _up_to(1e9, "W")
+SPEED = _magnitude(100.0, "m/s")
+GAIN = _up_to(1e9, "N per m/s")
+INTEGRAL_GAIN = _span(0.0, 1e9, "N per m")
+TIME_CONSTANT = _span(1e-3, 1e6, "s")
+ACCELERATION = _up_to(1e3, "m/s^2")
+DRAFT_COEFFICIENT = _span(0.0, 1e8, "N per unit")
+DRAFT_SIZE = _up_to(1e3, "(factor, m or cm)")
+STEER_RATE = _up_to(100.0, "rad/s")
+GRAVITY = _up_to(100.0, "m/s^2")
+SMOOTHING = _span(1e-6, 10.0, "m/s")
+POSITION = _magnitude(1e7, "m")
+HEADING = _magnitude(1e3, "rad")
+TIME = _magnitude(validate.MAX_DURATION, "s")
+TOLERANCE = _up_to(1.0, "(relative or absolute)")
+MANEUVER_PARAM = _magnitude(validate.MAX_DURATION, "")  # s, rad, m/s, m: each manoeuvre checks its own
+
+
 CART_FIELDS = ("name", "length", "hitch_offset", "com_offset", "mass", "yaw_inertia", "max_hitch_angle",
                "cornering_stiffness")
 HITCH_ANGLE = Rule("in (0, pi]", lambda x: 0 < x <= math.pi)
@@ -291,13 +269,13 @@ def _cart(s: _Section) -> spec.Cart:
     """One cart: l_k > 0, a_k and c_k any finite, m_k > 0, J_k > 0 (MODEL.md, Geometry)."""
     return spec.Cart(
         name=s.text("name"),
-        length=s.number("length", POSITIVE),
-        hitch_offset=s.number("hitch_offset"),
-        com_offset=s.number("com_offset"),
-        mass=s.number("mass", POSITIVE),
-        yaw_inertia=s.number("yaw_inertia", POSITIVE),
+        length=s.number("length", LENGTH),
+        hitch_offset=s.number("hitch_offset", OFFSET),
+        com_offset=s.number("com_offset", OFFSET),
+        mass=s.number("mass", MASS),
+        yaw_inertia=s.number("yaw_inertia", YAW_INERTIA),
         max_hitch_angle=s.number("max_hitch_angle", HITCH_ANGLE, spec.Cart.max_hitch_angle),
-        cornering_stiffness=s.number("cornering_stiffness", POSITIVE, None),
+        cornering_stiffness=s.number("cornering_stiffness", STIFFNESS, None),
     )
 
 
@@ -326,22 +304,22 @@ def _traction(forces: _Section) -> spec.Traction:
     s.check_fields(_TRACTION_FIELDS[law])
     defaults = spec.Traction(law=law)
     if law == "constant":
-        return spec.Traction(law=law, force=s.number("force"))
+        return spec.Traction(law=law, force=s.number("force", FORCE))
     if law == "governor":
         return spec.Traction(
             law=law,
-            set_speed=s.number("set_speed"),
-            max_force=s.number("max_force", POSITIVE),
-            max_power=s.number("max_power", POSITIVE),
-            kp=s.number("kp", POSITIVE),
-            ki=s.number("ki", NON_NEGATIVE),
-            windup_time=s.number("windup_time", POSITIVE, defaults.windup_time),
+            set_speed=s.number("set_speed", SPEED),
+            max_force=s.number("max_force", MAX_FORCE),
+            max_power=s.number("max_power", MAX_POWER),
+            kp=s.number("kp", GAIN),
+            ki=s.number("ki", INTEGRAL_GAIN),
+            windup_time=s.number("windup_time", TIME_CONSTANT, defaults.windup_time),
         )
     return spec.Traction(
         law=law,
-        set_speed=s.number("set_speed", ANY, defaults.set_speed),
-        response_time=s.number("response_time", POSITIVE),
-        max_accel=s.number("max_accel", POSITIVE, defaults.max_accel),
+        set_speed=s.number("set_speed", SPEED, defaults.set_speed),
+        response_time=s.number("response_time", TIME_CONSTANT),
+        max_accel=s.number("max_accel", ACCELERATION, defaults.max_accel),
     )
 
 
@@ -365,12 +343,12 @@ def _draft(s: _Section, names: tuple[str, ...]) -> spec.Draft:
     """ASABE D497 draft F_i (A + B S + C S^2) W T at B_k: A, B, C >= 0; F_i, W, T > 0."""
     return spec.Draft(
         cart=_cart_name(s, names),
-        A=s.number("A", NON_NEGATIVE),
-        B=s.number("B", NON_NEGATIVE, 0.0),
-        C=s.number("C", NON_NEGATIVE, 0.0),
-        soil_factor=s.number("soil_factor", POSITIVE, 1.0),
-        width=s.number("width", POSITIVE, 1.0),
-        depth=s.number("depth", POSITIVE, 1.0),
+        A=s.number("A", DRAFT_COEFFICIENT),
+        B=s.number("B", DRAFT_COEFFICIENT, 0.0),
+        C=s.number("C", DRAFT_COEFFICIENT, 0.0),
+        soil_factor=s.number("soil_factor", DRAFT_SIZE, 1.0),
+        width=s.number("width", DRAFT_SIZE, 1.0),
+        depth=s.number("depth", DRAFT_SIZE, 1.0),
     )
 
 
@@ -383,8 +361,8 @@ def _actuator(top: _Section) -> spec.Actuator:
         return spec.Train.actuator
     s = top.section("steering_actuator", ("time_constant", "max_rate", "max_angle"), ("max_rate", "max_angle"))
     return spec.Actuator(
-        time_constant=s.number("time_constant", POSITIVE),
-        max_rate=s.number("max_rate", POSITIVE),
+        time_constant=s.number("time_constant", TIME_CONSTANT),
+        max_rate=s.number("max_rate", STEER_RATE),
         max_angle=s.number("max_angle", MAX_STEER),
     )
 
@@ -400,16 +378,28 @@ def _train(data: dict, source: str) -> spec.Train:
     rolling_fields = ("cart", "coefficient")
     draft_fields = ("cart", "A", "B", "C", "soil_factor", "width", "depth")
     return spec.Train(
-        name=top.text("name", _stem(source)),
+        name=_name(top, source),
         carts=carts,
         traction=_traction(forces),
         rolling=tuple(_rolling(s, names) for s in forces.sections("rolling", rolling_fields)),
         draft=tuple(_draft(s, names) for s in forces.sections("draft", draft_fields)),
         actuator=_actuator(top),
-        gravity=top.number("gravity", POSITIVE, spec.GRAVITY),
-        smoothing_speed=top.number("smoothing_speed", POSITIVE, spec.Train.smoothing_speed),
+        gravity=top.number("gravity", GRAVITY, spec.GRAVITY),
+        smoothing_speed=top.number("smoothing_speed", SMOOTHING, spec.Train.smoothing_speed),
         source=source,
     )
+
+
+NAME_CHARS = 100
+
+
+def _name(top: _Section, source: str) -> str:
+    """The train's or scene's name (default: the file's stem): a plain word, for it names the
+    bag of a run (bags/<scene name>.mcap), never a path."""
+    name = top.text("name", _stem(source))
+    if top.has("name") and (len(name) > NAME_CHARS or not name.isprintable() or any(c in name for c in "/\\")):
+        top.fail("name", name, f"a name of at most {NAME_CHARS} printable characters without / or \\")
+    return name
 
 
 def _stem(source: str) -> str:
@@ -432,7 +422,7 @@ def load_train_text(text: str, source: str) -> spec.Train:
 
 def _table(s: _Section, value_key: str, value_rule: Rule = ANY) -> spec.Table:
     """A piecewise-linear table {time: [...], VALUE_KEY: [...]}: time strictly increasing."""
-    time = s.numbers("time")
+    time = s.numbers("time", TIME)
     value = s.numbers(value_key, value_rule)
     if not time:
         s.fail("time", s.values["time"], "a non-empty list of numbers")
@@ -449,11 +439,11 @@ def _speed(top: _Section) -> Optional[spec.Table]:
         return None
     value = top.values["speed"]
     if _is_number(value):
-        return spec.Table(time=(0.0,), value=(top.number("speed"),))
+        return spec.Table(time=(0.0,), value=(top.number("speed", SPEED),))
     if not isinstance(value, dict):
         top.fail("speed", value, "a number or {table: {time: [...], speed: [...]}}")
     outer = top.section("speed", ("table",))
-    return _table(outer.section("table", ("time", "speed"), required=True), "speed")
+    return _table(outer.section("table", ("time", "speed"), required=True), "speed", SPEED)
 
 
 def _steering_limit(train: spec.Train) -> Rule:
@@ -474,10 +464,10 @@ def _initial(top: _Section, train: spec.Train) -> spec.Initial:
             rule = f"smaller in size than max_hitch_angle {cart.max_hitch_angle:.4g} rad of {cart.name}"
             s.fail_item("hitch_angles", i, rule)
     return spec.Initial(
-        x=s.number("x", ANY, 0.0),
-        y=s.number("y", ANY, 0.0),
-        heading=s.number("heading", ANY, 0.0),
-        speed=s.number("speed", ANY, 0.0),
+        x=s.number("x", POSITION, 0.0),
+        y=s.number("y", POSITION, 0.0),
+        heading=s.number("heading", HEADING, 0.0),
+        speed=s.number("speed", SPEED, 0.0),
         steering=s.number("steering", _steering_limit(train), 0.0),
         hitch_angles=hitch_angles,
     )
@@ -487,13 +477,11 @@ def _integrator(top: _Section, publish_rate: float) -> spec.Integrator:
     """Integrator method and tolerances; the step must fit in one publishing period."""
     s = top.section("integrator", ("method", "step", "rtol", "atol", "split_kinks"))
     default = spec.Integrator()
-    period = 1.0 / publish_rate
-    step_rule = Rule(f"> 0 and <= 1/publish_rate = {period:.6g} s", lambda x: 0 < x <= period * (1 + 1e-12))
     return spec.Integrator(
         method=s.choice("method", INTEGRATOR_METHODS, default.method),
-        step=s.number("step", step_rule, default.step),
-        rtol=s.number("rtol", POSITIVE, default.rtol),
-        atol=s.number("atol", POSITIVE, default.atol),
+        step=s.number("step", validate.step_rule(publish_rate), default.step),
+        rtol=s.number("rtol", TOLERANCE, default.rtol),
+        atol=s.number("atol", TOLERANCE, default.atol),
         split_kinks=s.flag("split_kinks", default.split_kinks),
     )
 
@@ -522,7 +510,7 @@ def _steering(top: _Section, train: spec.Train, speed_at: Callable[[float], floa
     name = s.choice("maneuver", maneuvers.MANEUVERS)
     maneuver = maneuvers.MANEUVERS[name]
     p = s.section("params", maneuver.defaults, maneuver.angles)
-    params = {key: p.number(key) for key in p.values}
+    params = {key: p.number(key, MANEUVER_PARAM) for key in p.values}
     try:
         table = maneuvers.expand(
             name, params, speed_at=speed_at, wheelbase=train.carts[0].length, max_angle=train.actuator.max_angle
@@ -531,7 +519,22 @@ def _steering(top: _Section, train: spec.Train, speed_at: Callable[[float], floa
         from_scene = error.param in maneuvers.SCENE_PARAMS and not p.has(error.param)
         value = p.values.get(error.param, error.value)
         p.fail(error.param, value, error.rule + (" (taken from the scene; give it in params)" if from_scene else ""))
+    problem = _table_problem(table)
+    if problem:
+        s.fail("maneuver", name, f"expanded with these params to a table of {problem}")
     return table, name
+
+
+def _table_problem(table: spec.Table) -> str:
+    """'' if a table (an expanded manoeuvre's) has at most MAX_TABLE finite entries at strictly
+    increasing times, else what it has instead."""
+    if len(table.time) > validate.MAX_TABLE:
+        return f"at most {validate.MAX_TABLE} entries (it has {len(table.time)})"
+    if not all(map(math.isfinite, table.time + table.value)):
+        return "finite times and values"
+    if any(later <= earlier for earlier, later in zip(table.time, table.time[1:])):
+        return "strictly increasing times (they collapse in floating point)"
+    return ""
 
 
 SCENE_FIELDS = ("name", "train", "duration", "initial", "steering", "speed", "integrator", "publish_rate",
@@ -559,16 +562,17 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.
         top.text("train")  # still a required field; the train itself is the one given
     initial = _initial(top, train)
     speed = _speed(top)
-    publish_rate = top.number("publish_rate", POSITIVE, spec.Scene.publish_rate)
+    publish_rate = top.number("publish_rate", validate.PUBLISH_RATE, spec.Scene.publish_rate)
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
+    integrator = _integrator(top, publish_rate)
     return spec.Scene(
-        name=top.text("name", _stem(source)),
+        name=_name(top, source),
         train=train,
-        duration=top.number("duration", POSITIVE),
+        duration=_duration(top, publish_rate, integrator.step),
         initial=initial,
         steering=steering,
         speed=speed,
-        integrator=_integrator(top, publish_rate),
+        integrator=integrator,
         publish_rate=publish_rate,
         maneuver=maneuver,
         fidelity=top.choice("fidelity", FIDELITY_CHOICES, "auto"),
@@ -576,6 +580,15 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.
         source=source,
         raw=data,
     )
+
+
+def _duration(top: _Section, publish_rate: float, step: float) -> float:
+    """The run's length, s: > 0, and a run of it finite (validate.run_size: ticks and steps)."""
+    duration = top.number("duration", POSITIVE)
+    problem = validate.run_size(duration, publish_rate, step)
+    if problem:
+        top.fail("duration", top.values["duration"], problem)
+    return duration
 
 
 def _scene_train(top: _Section) -> spec.Train:
@@ -609,8 +622,7 @@ def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
         return _train(data, source)
     if "train" in data:
         return _scene(data, source)
-    keys = ", ".join(str(k) for k in data)
-    _fail("file", f"keys {keys}", "top level", source, "a train (with carts) or a scene (with train)")
+    _fail("file", f"keys {_show(list(data))}", "top level", source, "a train (with carts) or a scene (with train)")
 
 
 def check_files(paths: Iterable[Union[str, os.PathLike]]) -> int:

@@ -20,11 +20,15 @@ from typing import Callable, Mapping, Optional
 
 import numpy as np
 
+from ..validate import MAX_TABLE, is_finite
 from .spec import Table
 
 # rad: largest gap between a sampled smooth shape and its linear interpolation (half the 1e-4
 # rad budget, so round-off never pushes it over).
 TOLERANCE = 5e-5
+
+# s: the shortest period of a sampled shape (its curvature (2 pi / period)^2 stays in floating point)
+SHORTEST = 1e-3
 
 # Parameters a manoeuvre may leave to the scene: the loader fills them when not given.
 SCENE_PARAMS = ("speed", "wheelbase")
@@ -77,13 +81,18 @@ def sine(amplitude: float = 0.1, period: float = 6.0, t0: float = 1.0, cycles: f
     amplitude (2 pi / period)^2 h^2 / 8 stays within TOLERANCE.
     """
     _require(t0 >= 0, "t0", t0, ">= 0")
-    _require(period > 0, "period", period, "> 0")
+    _require(period >= SHORTEST, "period", period, f"> 0 and at least {SHORTEST:g} s")
     _require(cycles > 0, "cycles", cycles, "> 0")
     omega = 2.0 * math.pi / period
     h = period / 16.0
-    if amplitude != 0.0:
-        h = min(h, math.sqrt(8.0 * TOLERANCE / (abs(amplitude) * omega**2)))
+    curvature = abs(amplitude) * omega**2  # 0 for a zero amplitude (or one that underflows)
+    if curvature > 0.0:
+        h = min(h, math.sqrt(8.0 * TOLERANCE / curvature))
     length = cycles * period
+    samples = length / h + 1
+    _require(samples <= MAX_TABLE, "cycles", cycles,
+             f"fewer: {samples:.4g} samples of amplitude {amplitude:g} at step {h:.4g} s, more than the {MAX_TABLE} "
+             f"entries a table may have")
     s = np.linspace(0.0, length, math.ceil(length / h) + 1)
     return _table(t0 + s, amplitude * np.sin(omega * s))
 
@@ -100,7 +109,7 @@ def lane_change(t0: float = 2.0, amplitude: float = 0.1, duration: float = 6.0) 
     zero (sin psi is odd about the half period), so the heading returns to its start while the
     lateral position has moved by about V^2 amplitude duration^2 / (2 pi l) to the left.
     """
-    _require(duration > 0, "duration", duration, "> 0")
+    _require(duration >= SHORTEST, "duration", duration, f"> 0 and at least {SHORTEST:g} s")
     return sine(amplitude=amplitude, period=duration, t0=t0, cycles=1.0)
 
 
@@ -192,18 +201,15 @@ def expand(
         kwargs["wheelbase"] = wheelbase
     if "speed" in defaults and "speed" not in kwargs and speed_at is not None:
         kwargs["speed"] = speed_at(kwargs.get("t0", defaults.get("t0", 0.0)))
+    peak_rule = f"within the steering actuator's max_angle {max_angle:.4g} rad"
+    if maneuver.peak:  # before building: the peak sets how finely a curve is sampled
+        peak_value = kwargs.get(maneuver.peak, defaults[maneuver.peak])
+        _require(abs(peak_value) <= max_angle, maneuver.peak, peak_value, peak_rule)
     table = maneuver.build(**kwargs)
     if maneuver.peak:
-        peak_value = kwargs.get(maneuver.peak, defaults[maneuver.peak])
         largest = max(abs(v) for v in table.value)
-        _require(
-            largest <= max_angle,
-            maneuver.peak,
-            peak_value,
-            f"within the steering actuator's max_angle {max_angle:.4g} rad",
-        )
+        _require(largest <= max_angle, maneuver.peak, peak_value, peak_rule)
     return table
 
 
-def _is_finite_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+_is_finite_number = is_finite

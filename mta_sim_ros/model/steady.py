@@ -25,10 +25,15 @@ class SteadyCircle:
     hitch_angles: tuple[float, ...]  # th_{k-1} - th_k, k = 2..n, rad
 
 
+#: rad: a smaller steering is straight on for steady circles (radii beyond 1e100 m)
+STRAIGHT = 1e-100
+
+
 def steady_circle(train, steering: float) -> SteadyCircle:
-    """The steady circles for a constant steering angle 0 < |steering| < pi/2 (sign: side)."""
-    if not 0.0 < abs(steering) < math.pi / 2:
-        raise SteadyStateError(f"steering: {steering} must satisfy 0 < |steering| < pi/2 for a steady turn")
+    """The steady circles for a constant steering angle 0 < |steering| < pi/2 (sign: side); a
+    steering below STRAIGHT has radii past floating point (their squares overflow)."""
+    if not STRAIGHT < abs(steering) < math.pi / 2:
+        raise SteadyStateError(f"steering: {steering} must satisfy {STRAIGHT:g} < |steering| < pi/2 for a steady turn")
     sign = math.copysign(1.0, steering)
     psi1 = abs(steering)
     carts = train.carts

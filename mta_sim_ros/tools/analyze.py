@@ -54,7 +54,6 @@ import json
 import math
 import os
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -62,8 +61,9 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..bag import BagError, read_messages, read_metadata
-from ..model.loader import SpecError, load_train
 from ..model.steady import SteadyStateError, steady_circle
+from ..runlog import RECORD, recorded_scene_name, recorded_train
+from ..validate import EXIT_INPUT, InputError, output_folder
 
 # The topics the simulator writes, by the last component of their names.
 KNOWN = ("hitch_poses", "cart_velocities", "traction_power", "steering_angle", "applied_steering",
@@ -166,29 +166,14 @@ def _find_topics(names: Iterable[str]) -> tuple[dict[str, str], list[str]]:
 
 
 def _train_from_metadata(path: Path) -> tuple[Any, str]:
-    """The train (model.spec.Train) and scene name from the bag's ``mta_sim_ros`` metadata."""
-    meta = read_metadata(path).get("mta_sim_ros")
-    if not meta or "train_yaml" not in meta:
-        raise AnalyzeError(f"{path}: no metadata record 'mta_sim_ros' with train_yaml: the bag was not "
-                           "written by mta run or the mta_sim_ros node")
-    train_name = Path(meta.get("train_file") or "train.yaml").name
-    with tempfile.TemporaryDirectory(prefix="mta_analyze_") as tmp:
-        train_file = Path(tmp) / train_name
-        train_file.write_text(meta["train_yaml"])
-        train = load_train(train_file)
-    scene_name = ""
-    if meta.get("scene_yaml"):
-        import yaml
-
-        try:
-            scene = yaml.safe_load(meta["scene_yaml"])
-            if isinstance(scene, dict) and scene.get("name"):
-                scene_name = str(scene["name"])
-        except yaml.YAMLError:
-            pass
-    if not scene_name:
-        scene_name = Path(meta.get("scene_file") or path.stem).stem
-    return train, scene_name
+    """The train (model.spec.Train) and scene name from the bag's ``mta_sim_ros`` metadata: its
+    recorded texts, parsed by the loader's rules (runlog.recorded_train); no file it names is
+    opened."""
+    meta = read_metadata(path).get(RECORD)
+    if not meta:
+        raise AnalyzeError(f"{path}: no metadata record '{RECORD}': the bag was not written by mta run or the "
+                           "mta_sim_ros node")
+    return recorded_train(meta, str(path)), recorded_scene_name(meta, str(path))
 
 
 def _series(rows: list[tuple[int, Any]], value) -> Series | None:
@@ -204,7 +189,7 @@ def load_bag(path: str | os.PathLike, label: str | None = None) -> BagData:
     Raises:
         BagError: the file is not a readable bag.
         AnalyzeError: no train metadata, or no hitch_poses.
-        SpecError: the stored train file breaks a rule.
+        InputError: the recorded train text breaks a rule (SpecError).
     """
     path = Path(path)
     train, scene_name = _train_from_metadata(path)
@@ -951,10 +936,9 @@ def analyze(bags: Sequence[str | os.PathLike], folder: str | os.PathLike | None 
     """
     if not bags:
         raise AnalyzeError("no bag given")
-    folder = Path(folder) if folder is not None else default_folder(bags)
+    folder = output_folder(folder if folder is not None else default_folder(bags), "--output")
     labels = _labels(bags)
     datas = [load_bag(b, lab) for b, lab in zip(bags, labels)]
-    folder.mkdir(parents=True, exist_ok=True)
     summaries = [summarize(d) for d in datas]
     differences = {f"{d.label} - {datas[0].label}": compare(datas[0], d) for d in datas[1:]}
     figures = plot_all(datas, folder)
@@ -979,9 +963,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     try:
         result = analyze(args.bags, args.output)
-    except (BagError, AnalyzeError, SpecError) as err:
+    except (BagError, AnalyzeError, InputError, OSError) as err:
         print(f"mta analyze: {err}", file=sys.stderr)
-        return 2 if isinstance(err, SpecError) else 1
+        return EXIT_INPUT if isinstance(err, InputError) else 1
     folder = result["folder"]
     print(f"report: {folder}/summary.md ({len(result['figures'])} figures, {len(result['csv'])} CSV files in "
           f"{folder}/csv)")

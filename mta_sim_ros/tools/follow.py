@@ -30,18 +30,25 @@ from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
 from ..ros_msgs import QOS
 from ..paths import field_path, lateral_error
+from ..validate import Range, Rule, number_arg, output_file, path_arg
 from .maneuver import spin_until_done
+
+#: largest length of the field's passes, their spacing and the look-ahead, m (the path is sampled every 0.25 m)
+FIELD_SIZE = 5000.0
+FIELD = Rule(f"in (0, {FIELD_SIZE:g}] m", lambda x: 0 < x <= FIELD_SIZE)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", default="scenes/headland_turn.yaml", help="scene giving the train (cart lengths)")
-    p.add_argument("--passes", type=int, default=3, help="straight passes (default 3)")
-    p.add_argument("--length", type=float, default=80.0, help="length of a pass, m (default 80)")
-    p.add_argument("--spacing", type=float, default=24.0,
+    p.add_argument("--passes", type=number_arg(Range.of(1, 100), int), default=3, help="straight passes (default 3)")
+    p.add_argument("--length", type=number_arg(FIELD), default=80.0, help=f"length of a pass, m (default 80; {FIELD.text})")
+    p.add_argument("--spacing", type=number_arg(FIELD), default=24.0,
                    help="distance between passes, m (default 24: every other 12 m pass, a 12 m turn radius)")
-    p.add_argument("--lookahead", type=float, default=6.0, help="pure-pursuit look-ahead distance, m (default 6)")
-    p.add_argument("--settle", type=float, help="m of each pass left out of the error (default 2 x train length)")
-    p.add_argument("--report", help="write the error figures to this JSON file")
+    p.add_argument("--lookahead", type=number_arg(FIELD), default=6.0,
+                   help="pure-pursuit look-ahead distance, m (default 6)")
+    p.add_argument("--settle", type=number_arg(Range.of(0.0, FIELD_SIZE, "m")),
+                   help="m of each pass left out of the error (default 2 x train length)")
+    p.add_argument("--report", type=path_arg(output_file), help="write the error figures to this JSON file")
 
 
 def cart_axle(msg: PoseArray, k: int, length: float) -> tuple[np.ndarray, float]:

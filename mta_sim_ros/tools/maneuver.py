@@ -25,13 +25,16 @@ from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
 from ..ros_msgs import QOS
 from ..sim import speed_setpoint, table_value
+from ..validate import DURATION, number_arg
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", default="scenes/headland_turn.yaml", help="scene whose steering/speed to play")
-    p.add_argument("--maneuver", help="play this named manoeuvre instead of the scene's steering")
+    p.add_argument("--maneuver", choices=tuple(maneuvers.MANEUVERS), metavar="NAME",
+                   help=f"play this named manoeuvre instead of the scene's steering ({', '.join(maneuvers.MANEUVERS)})")
     p.add_argument("--param", action="append", default=[], metavar="K=V", help="manoeuvre parameter (repeatable)")
-    p.add_argument("--duration", type=float, help="s of sim time to play (default: the scene's duration)")
+    p.add_argument("--duration", type=number_arg(DURATION),
+                   help="s of sim time to play (default: the scene's duration)")
 
 
 class ManeuverPlayer(Node):
@@ -68,6 +71,8 @@ def main(args: argparse.Namespace) -> int:
         scene = load_scene(resolve_config_path(args.scene))
         if args.maneuver:
             scene = scene_with_maneuver(scene, args.maneuver, parse_params(args.param))
+        elif args.param:
+            raise ValueError("--param: given without --maneuver (the scene's own steering takes none)")
     except (SpecError, ValueError) as err:
         print(f"mta maneuver: {err}", file=sys.stderr)
         return 2

@@ -26,7 +26,9 @@
     applied_steering with the recorded ones at every tick. Prints the largest deviation of
     each and ``identical`` when every value is exactly equal (the same method and step must
     give that). --method / --step re-simulate with another integrator and report how far it
-    lands. Exit code 0 when compared, 1 on an error (unreadable bag, no metadata, bad files).
+    lands. Exit code 0 when compared, 2 when an option or a value the bag records breaks a rule
+    (one line, validate.py; the recorded files by the loader's rules, no path they name opened),
+    1 on another error (an unreadable bag, no metadata record).
     Topics may carry a namespace (matched by their last name component); a node bag's time
     may be offset after a reset (metadata ``clock_offset``).
 """
@@ -34,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import re
 import signal
 import sys
@@ -44,7 +45,11 @@ from pathlib import Path
 
 from ..bag import BagError, read_messages, read_metadata
 from ..commands import command_ranges, hold
+from ..runlog import RECORD, recorded_options, recorded_scene
 from ..topics import WATCHDOG_TOPIC
+from ..model.spec import INTEGRATOR_METHODS as METHODS
+from ..validate import (MAX_TICKS, NON_NEGATIVE, POSITIVE, InputError, Range, fail, is_finite, number_arg, show,
+                        step_floor)
 from .run import Progress
 
 #: Outputs compared by --resimulate (last name component of the topic).
@@ -60,20 +65,28 @@ ACK_TIMEOUT = 2.0
 EXIT_ERROR = 1
 EXIT_USAGE = 2
 
+#: playback speed factors
+PLAY_RATE = Range.of(1e-3, 1e3)
+#: seconds --wait-for-subscribers may wait
+WAIT = Range.of(0.0, 3600.0, "s")
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("bag", help="the MCAP bag (from mta run or the node)")
-    p.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default 1: as recorded)")
+    p.add_argument("--rate", type=number_arg(PLAY_RATE), default=1.0,
+                   help=f"playback speed factor (default 1: as recorded; {PLAY_RATE.text})")
     p.add_argument("--loop", action="store_true", help="play again from the start at the end, until stopped")
     p.add_argument("--topics", nargs="+", metavar="T", help="only these topics (as recorded; default: all)")
-    p.add_argument("--start", type=float, default=0.0, metavar="S",
+    p.add_argument("--start", type=number_arg(NON_NEGATIVE), default=0.0, metavar="S",
                    help="start S seconds after the bag's first message (default 0)")
-    p.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
+    p.add_argument("--wait-for-subscribers", type=number_arg(WAIT), default=0.0, metavar="S",
                    help="before playing, wait up to S seconds until every topic has a subscriber (default 0)")
     p.add_argument("--resimulate", action="store_true",
                    help="no ROS: re-run the recorded commands through the simulator, compare with the bag")
-    p.add_argument("--method", help="with --resimulate: integrator to use instead of the recorded one")
-    p.add_argument("--step", type=float, help="with --resimulate: integrator step, s, instead of the recorded one")
+    p.add_argument("--method", choices=METHODS, metavar="METHOD",
+                   help=f"with --resimulate: integrator to use instead of the recorded one ({', '.join(METHODS)})")
+    p.add_argument("--step", type=number_arg(POSITIVE),
+                   help="with --resimulate: integrator step, s, instead of the recorded one")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -85,12 +98,6 @@ def main(args: argparse.Namespace) -> int:
         return resimulate_main(args)
     if args.method or args.step:
         print("mta replay: --method and --step need --resimulate", file=sys.stderr)
-        return EXIT_USAGE
-    if not args.rate > 0 or not math.isfinite(args.rate):
-        print(f"mta replay: --rate {args.rate} must be > 0", file=sys.stderr)
-        return EXIT_USAGE
-    if not args.start >= 0 or not math.isfinite(args.start):
-        print(f"mta replay: --start {args.start} must be >= 0", file=sys.stderr)
         return EXIT_USAGE
     return play_main(args)
 
@@ -290,23 +297,6 @@ class ResimulationError(Exception):
     """The bag cannot be re-simulated (no metadata, files that do not load, ...)."""
 
 
-def rebuild_scene(meta: dict[str, str]):
-    """The run's scene from the metadata's file texts (the scene and its train as they were read);
-    no file is opened, whatever the recorded texts name."""
-    from ..model.loader import SpecError, load_scene_text, load_train_text
-
-    for key in ("scene_yaml", "train_yaml"):
-        if key not in meta:
-            raise ResimulationError(f"metadata mta_sim_ros has no {key}")
-    scene_name = os.path.basename(meta.get("scene_file") or "scene.yaml") or "scene.yaml"
-    train_name = os.path.basename(meta.get("train_file") or "train.yaml") or "train.yaml"
-    try:
-        train = load_train_text(meta["train_yaml"], f"the recorded train {train_name!r}")
-        return load_scene_text(meta["scene_yaml"], f"the recorded scene {scene_name!r}", train)
-    except SpecError as err:
-        raise ResimulationError(f"the recorded scene does not load: {err}") from None
-
-
 def _topics_by_name(bag: str, names) -> dict[str, str]:
     """Recorded topic for each wanted last name component (a namespace prefix is allowed)."""
     from ..bag import summary
@@ -391,36 +381,28 @@ class _Held:
 def resimulate(bag: str, method: str | None = None, step: float | None = None, progress=None) -> Resimulation:
     """Re-run the bag's commands through a fresh Simulation and compare the outputs with the
     bag's (see the module docstring). Raises ResimulationError or BagError."""
-    from ..integrate import METHODS, IntegrationError
+    from ..integrate import IntegrationError
     from ..model.guards import ModelValidityError
     from ..sim import Simulation
     from ..topics import output_messages
 
     if method is not None and method not in METHODS:
-        raise ResimulationError(f"--method {method!r} is not one of {', '.join(METHODS)}")
-    if step is not None and not step > 0:
-        raise ResimulationError(f"--step {step} must be > 0")
-    meta = read_metadata(bag).get("mta_sim_ros")
+        fail("--method", show(method), f"one of {', '.join(METHODS)}")
+    if step is not None and not (is_finite(step) and step > 0):
+        fail("--step", show(step), "a finite number > 0")
+    meta = read_metadata(bag).get(RECORD)
     if meta is None:
-        raise ResimulationError(f"{bag} has no metadata record mta_sim_ros (not a bag of mta run or the node)")
+        raise ResimulationError(f"{bag} has no metadata record {RECORD} (not a bag of mta run or the node)")
     node_bag = any(k.startswith("param.") for k in meta)
-    try:
-        recorded_method = meta["method"]
-        recorded_step = float(meta["step"])
-        rate = float(meta["param.publish_rate"] if "param.publish_rate" in meta else meta["rate"])
-        offset = float(meta.get("clock_offset", "0"))
-        algorithm = int(meta.get("algorithm", "2"))
-    except (KeyError, ValueError) as err:
-        raise ResimulationError(f"metadata mta_sim_ros: missing or bad {err}") from None
-    scene = rebuild_scene(meta)
-    # bags from before kink splitting (no split_kinks key) were stepped across the kinks
-    split_kinks = meta.get("split_kinks", "False") == "True"
-    try:
-        sim = Simulation(scene, method=method or recorded_method, step=step or recorded_step, rate=rate,
-                         algorithm=algorithm, fidelity=meta.get("fidelity"),  # the recorded level
-                         split_kinks=split_kinks)
-    except ValueError as err:
-        raise ResimulationError(str(err)) from None
+    recorded = recorded_options(meta, str(bag))
+    recorded_method, recorded_step, rate = recorded["method"], recorded["step"], recorded["rate"]
+    offset = recorded["clock_offset"]
+    scene = recorded_scene(meta, str(bag))
+    if step is not None and not step_floor(rate).test(step):
+        fail("--step", show(step), step_floor(rate).text)
+    sim = Simulation(scene, method=method or recorded_method, step=step or recorded_step, rate=rate,
+                     algorithm=recorded["algorithm"], fidelity=recorded["fidelity"],  # the recorded level
+                     split_kinks=recorded["split_kinks"])
     result = Resimulation(bag=bag, scene=scene.name, method=sim.method, step=sim.step, tick=sim.tick,
                           recorded_method=recorded_method, recorded_step=recorded_step)
     topics = _topics_by_name(bag, OUTPUTS + COMMANDS)
@@ -456,6 +438,9 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
         if result.stopped:
             result.not_compared += 1
             continue
+        if log_time - key() > MAX_TICKS * sim.tick * 1e9:
+            fail("log time", f"{t:.6g} s", f"at most {MAX_TICKS:.0e} ticks of {sim.tick:g} s after the run's "
+                 f"{sim.t:.6g} s", f"{topic}", str(bag))
         while key() < log_time:
             now = key()
             while next_command < len(commands) and commands[next_command][0] <= now:
@@ -511,17 +496,15 @@ def report(r: Resimulation) -> str:
 
 
 def resimulate_main(args: argparse.Namespace) -> int:
-    from ..model.loader import SpecError
-
     progress = None
     try:
         progress = Progress(_duration(args.bag))
         r = resimulate(args.bag, args.method, args.step, progress)
-    except (ResimulationError, BagError, SpecError, OSError) as err:
+    except (ResimulationError, BagError, InputError, ValueError, OSError) as err:
         if progress:
             progress.close()
         print(f"mta replay: {err}", file=sys.stderr)
-        return EXIT_ERROR
+        return EXIT_USAGE if isinstance(err, InputError) else EXIT_ERROR
     progress.close()
     print(report(r))
     return 0

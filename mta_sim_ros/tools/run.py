@@ -4,11 +4,15 @@ The bag holds the topics the node publishes (``topics.py``) with log_time = simu
 and a metadata record ``mta_sim_ros`` with the scene and train files as read and the run's
 options, so the run can be repeated from the bag alone. A run stopped by a validity guard
 (jackknife, non-finite state) keeps everything up to that point, closes the bag properly, says
-what happened and exits with code 3.
+what happened and exits with code 3. A bad scene or argument (validate.py) is refused in one line
+with exit code 2 before anything is written; the bag and the report are written beside their
+place and renamed onto it when complete, so a failed run loses no earlier bag and leaves no
+half-written one (exit code 1 when the bag cannot be written).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -17,10 +21,13 @@ from .. import __version__
 from ..bag import BagError, BagWriter
 from ..fidelity import LEVELS, choose
 from ..messages import CommandEncoder, OutputEncoder
-from ..model.loader import SpecError, load_scene
+from ..model.loader import load_scene
+from ..model.spec import INTEGRATOR_METHODS
 from ..sim import run_scene
 from ..summary import RunSummary
 from ..topics import TOPICS, qualified
+from ..validate import (EXIT_INPUT, MAX_STEPS_PER_TICK, POSITIVE, PUBLISH_RATE, fail, number_arg, output_file,
+                        show, step_count, step_rule, tick_count)
 
 EXIT_STOPPED = 3
 
@@ -29,9 +36,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", required=True, help="scene YAML (config/scenes/*.yaml)")
     p.add_argument("--bag", help="MCAP file to write (default: bags/<scene name>.mcap)")
     p.add_argument("--report", help="summary Markdown to write (default: beside the bag, .md)")
-    p.add_argument("--method", help="integrator, overrides the scene (euler, heun, rk4, RK45, DOP853, LSODA, Radau, BDF)")
-    p.add_argument("--step", type=float, help="integrator step, s, overrides the scene")
-    p.add_argument("--rate", type=float, help="publish (tick) rate, Hz, overrides the scene")
+    p.add_argument("--method", choices=INTEGRATOR_METHODS, metavar="METHOD",
+                   help=f"integrator, overrides the scene (one of {', '.join(INTEGRATOR_METHODS)})")
+    p.add_argument("--step", type=number_arg(POSITIVE),
+                   help="integrator step, s, overrides the scene (at most the tick, at least tick / "
+                        f"{MAX_STEPS_PER_TICK})")
+    p.add_argument("--rate", type=number_arg(PUBLISH_RATE), help="publish (tick) rate, Hz, overrides the scene "
+                                                                  f"({PUBLISH_RATE.text})")
     p.add_argument("--fidelity", choices=("auto",) + LEVELS,
                    help="model level, overrides the scene's fidelity (auto: the cheapest meeting the scene's needs)")
     p.add_argument("--no-split-kinks", dest="split_kinks", action="store_false", default=None,
@@ -78,37 +89,98 @@ def run_metadata(scene, options: dict) -> dict[str, str]:
     }
 
 
-def main(args: argparse.Namespace) -> int:
-    try:
-        scene = load_scene(args.scene)
-    except SpecError as err:
-        print(f"mta run: {err}", file=sys.stderr)
-        return 2
-    bag_path = Path(args.bag or f"bags/{scene.name}.mcap")
-    report_path = Path(args.report) if args.report else bag_path.with_suffix(".md")
-    fidelity = getattr(args, "fidelity", None)
-    try:
-        choice = choose(scene, forced=fidelity)
-    except ValueError as err:
-        print(f"mta run: {err}", file=sys.stderr)
-        return 2
+def output_paths(args: argparse.Namespace, scene) -> tuple[Path, Path]:
+    """The bag and report paths, checked before any work: writable files (validate.output_file),
+    not the same file, and neither the scene nor its train file."""
+    bag = output_file(args.bag or f"bags/{scene.name}.mcap", "--bag")
+    report = output_file(args.report, "--report") if args.report else bag.with_suffix(".md")
+    if report.resolve() == bag.resolve():
+        fail("--report", show(str(report)), "another file than the bag")
+    for field, path in (("--bag", bag), ("--report", report)):
+        for source in (scene.source, scene.train.source):
+            if path.resolve() == Path(source).resolve():
+                fail(field, show(str(path)), f"another file than the input {source}")
+    return bag, report
+
+
+def run_options(args: argparse.Namespace, scene, choice) -> dict:
+    """What the run uses: method, step, rate, fidelity, split_kinks (the scene's unless given),
+    checked against each other (the step within the tick) and the run's size (validate.run_size)."""
     method = args.method
     if choice.level == "slip" and not method:
         from ..model.slip import DEFAULT_METHOD as method  # the slip level's own (its tyres are stiff)
-    step = args.step or (1.0 / (args.rate or scene.publish_rate) if choice.level == "slip" and not args.method
+    rate = args.rate or scene.publish_rate
+    step = args.step or (1.0 / rate if choice.level == "slip" and not args.method
                          else scene.integrator.step)  # as Simulation takes them
+    if args.step is not None and not step_rule(rate).test(args.step):
+        fail("--step", show(args.step), step_rule(rate).text)
+    problem = tick_count(scene.duration, rate)  # the scene's own is checked by the loader
+    if problem:
+        fail("--rate", show(args.rate), f"{problem} for the duration {scene.duration:g} s of {scene.source}")
+    problem = step_count(scene.duration, rate, step)
+    if problem:
+        fail("--step" if args.step else "--rate", show(args.step or args.rate), problem)
     split_kinks = getattr(args, "split_kinks", None)
-    options = {"method": method or scene.integrator.method, "step": step,
-               "rate": args.rate or scene.publish_rate, "algorithm": 2,
-               "fidelity": choice.level, "fidelity_reason": choice.reason,
-               "split_kinks": scene.integrator.split_kinks if split_kinks is None else split_kinks}
+    return {"method": method or scene.integrator.method, "step": step, "rate": rate, "algorithm": 2,
+            "fidelity": choice.level, "fidelity_reason": choice.reason,
+            "split_kinks": scene.integrator.split_kinks if split_kinks is None else split_kinks}
+
+
+def partial(path: Path) -> Path:
+    """Where ``path`` is written until it is complete (then renamed onto it): a failed run
+    leaves no file claiming to be the run, and loses no earlier one."""
+    return path.with_name(f".{path.name}.partial")
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through its partial file."""
+    tmp = partial(path)
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        scene = load_scene(args.scene)
+        choice = choose(scene, forced=getattr(args, "fidelity", None))
+        options = run_options(args, scene, choice)
+        bag_path, report_path = output_paths(args, scene)
+    except ValueError as err:  # SpecError, InputError, a fidelity level the scene cannot run
+        print(f"mta run: {err}", file=sys.stderr)
+        return EXIT_INPUT
+    tmp_bag = partial(bag_path)
+    try:
+        result = simulate(args, scene, choice, options, tmp_bag)
+        if isinstance(result, int):
+            return result
+        sim, stopped, summary, wall = result
+        text = summary.markdown(f"Run of scene '{scene.name}' ({scene.source})",
+                                report_extra(sim, choice, summary, wall, bag_path, stopped))
+        os.replace(tmp_bag, bag_path)
+    finally:
+        tmp_bag.unlink(missing_ok=True)
+    write_atomic(report_path, text)
+    if not args.quiet:
+        print(text)
+        print(f"bag: {bag_path}\nreport: {report_path}")
+    if stopped:
+        print(f"mta run: stopped: {stopped}", file=sys.stderr)
+        return EXIT_STOPPED
+    return 0
+
+
+def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: Path):
+    """Run the scene into the bag at ``bag_path``: (sim, what stopped it or None, summary, wall
+    seconds), or an exit code after saying what went wrong in one line."""
     cart_names = [c.name for c in scene.train.carts]
     tick = 1.0 / options["rate"]
     summary = RunSummary(tuple(cart_names))
     progress = Progress(scene.duration)
     started = time.perf_counter()
     try:
-        bag_path.parent.mkdir(parents=True, exist_ok=True)
         with BagWriter(str(bag_path), metadata={"mta_sim_ros": run_metadata(scene, options)}) as bag:
             for topic, type_name in TOPICS.items():
                 bag.add_topic(qualified(topic), type_name)
@@ -126,12 +198,20 @@ def main(args: argparse.Namespace) -> int:
 
             sim, stopped = run_scene(scene, on_output=record, method=args.method, step=args.step, rate=args.rate,
                                      fidelity=choice.level, split_kinks=options["split_kinks"])
-    except BagError as err:
+    except (BagError, OSError) as err:
         progress.close()
         print(f"mta run: {err}", file=sys.stderr)
         return 1
+    except ValueError as err:  # the simulation refuses its options (validate.MAX_STEPS_PER_TICK, ...)
+        progress.close()
+        print(f"mta run: {err}", file=sys.stderr)
+        return EXIT_INPUT
     progress.close()
-    wall = time.perf_counter() - started
+    return sim, stopped, summary, time.perf_counter() - started
+
+
+def report_extra(sim, choice, summary, wall: float, bag_path: Path, stopped) -> dict[str, str]:
+    """The report's lines about the run beyond the summary's figures."""
     extra = {
         "fidelity": choice.reason,
         "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations, "
@@ -141,13 +221,4 @@ def main(args: argparse.Namespace) -> int:
     }
     if stopped:
         extra["stopped early"] = str(stopped)
-    text = summary.markdown(f"Run of scene '{scene.name}' ({scene.source})", extra)
-    report_path.parent.mkdir(parents=True, exist_ok=True)
-    report_path.write_text(text)
-    if not args.quiet:
-        print(text)
-        print(f"bag: {bag_path}\nreport: {report_path}")
-    if stopped:
-        print(f"mta run: stopped: {stopped}", file=sys.stderr)
-        return EXIT_STOPPED
-    return 0
+    return extra

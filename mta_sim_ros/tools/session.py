@@ -9,6 +9,8 @@ profile).
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import signal
 import subprocess
 import sys
@@ -16,15 +18,20 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..params import argument
+from ..validate import EXIT_INPUT, InputError, output_folder, path_arg
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", default="scenes/headland_turn.yaml", help="scene to drive (default: headland_turn)")
-    p.add_argument("--real-time-factor", type=float, default=4.0,
+    p.add_argument("--real-time-factor", type=argument("real_time_factor"), default=4.0,
                    help="simulated seconds per wall second (default 4: the 70 s U-turn takes ~18 s)")
-    p.add_argument("--rate", type=float, default=50.0,
+    p.add_argument("--rate", type=argument("publish_rate"), default=50.0,
                    help="node tick rate, Hz (default 50: a 5 ms wall tick at 4x, room for a 2-core machine)")
-    p.add_argument("--bag-dir", default="bags", help="where the node writes the run's bag (default bags/)")
-    p.add_argument("--report-dir", default="reports", help="where the analysis goes (default reports/)")
+    p.add_argument("--bag-dir", type=path_arg(output_folder), default="bags",
+                   help="where the node writes the run's bag (default bags/)")
+    p.add_argument("--report-dir", type=path_arg(output_folder), default="reports",
+                   help="where the analysis goes (default reports/)")
 
 
 def _mta(*args: str, **kwargs) -> subprocess.Popen:
@@ -35,15 +42,21 @@ def _mta(*args: str, **kwargs) -> subprocess.Popen:
 
 def main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
+    from ..model.loader import load_scene
 
     scene = resolve_config_path(args.scene)
+    try:
+        load_scene(scene)  # its faults in one line here, not from inside the node and the player
+    except InputError as err:
+        print(f"mta session: {err}", file=sys.stderr)
+        return EXIT_INPUT
     bag_dir = Path(args.bag_dir).resolve()
     before = set(bag_dir.glob("*.mcap")) if bag_dir.is_dir() else set()
     with tempfile.TemporaryDirectory() as tmp:
         params = Path(tmp) / "params.yaml"
         params.write_text(
             "/**:\n  ros__parameters:\n"
-            f"    scene_file: '{Path(scene).resolve()}'\n    bag_dir: '{bag_dir}'\n"
+            f"    scene_file: {json.dumps(str(Path(scene).resolve()))}\n    bag_dir: {json.dumps(str(bag_dir))}\n"
             f"    real_time_factor: {args.real_time_factor}\n    publish_rate: {args.rate}\n"
         )
         print(f"mta session: node on '{scene}' at {args.real_time_factor:g}x real time", flush=True)

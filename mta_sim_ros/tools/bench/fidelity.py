@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...validate import COUNT, number_arg, output_file, path_arg
 from .common import header_lines, table, write_report
 
 HELP = "each fidelity level's error against slip and its cost, per scene"
@@ -25,8 +26,8 @@ OUTPUTS = ("poses", "speed", "power", "hitch_angles")
 
 def add_arguments(p) -> None:
     p.add_argument("--scenes", default=SCENES, help=f"folder of scene YAML files (default {SCENES})")
-    p.add_argument("--repeats", type=int, default=2, help="timed runs per scene and level (default 2)")
-    p.add_argument("--out", default="docs/fidelity.md", help="Markdown report to write")
+    p.add_argument("--repeats", type=number_arg(COUNT, int), default=2, help="timed runs per scene and level (default 2)")
+    p.add_argument("--out", type=path_arg(output_file), default="docs/fidelity.md", help="Markdown report to write")
 
 
 def record(scene, level: str, **kw):

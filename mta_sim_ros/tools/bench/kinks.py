@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import time
 
+from ...validate import output_file, path_arg
 from .common import BENCHMARKS, REPO, header_lines, resolve_scene, table, write_report
 
 HELP = "every method across the kinks of the right-hand side, split and not"
@@ -27,7 +28,7 @@ TARGET = 1e-6  # m: the default method against the reference
 
 def add_arguments(p) -> None:
     p.add_argument("--scene", default="scenes/kinks.yaml", help="the kink scene (default scenes/kinks.yaml)")
-    p.add_argument("--out", default=str(REPO / BENCHMARKS / "kinks.md"), help="Markdown report to write")
+    p.add_argument("--out", type=path_arg(output_file), default=str(REPO / BENCHMARKS / "kinks.md"), help="Markdown report to write")
 
 
 def kink_table(case) -> list[str]:

@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+from ...validate import COUNT, PUBLISH_RATE, Range, number_arg, output_file, path_arg
 from .common import BENCHMARKS, DEFAULT_SCENE, header_lines, resolve_scene, side_by_side, write_report
 
 HELP = "integrators offline: error against a reference vs CPU time per tick"
@@ -25,11 +26,11 @@ STEPS = (0.01, 0.005, 0.0025)
 
 def add_arguments(p) -> None:
     p.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
-    p.add_argument("--rate", type=float, default=100.0, help="tick rate, Hz (default 100, the node's)")
-    p.add_argument("--repeats", type=int, default=5, help="timed repeats per method (default 5)")
-    p.add_argument("--paced-ticks", type=int, default=1000,
+    p.add_argument("--rate", type=number_arg(PUBLISH_RATE), default=100.0, help="tick rate, Hz (default 100, the node's)")
+    p.add_argument("--repeats", type=number_arg(COUNT, int), default=5, help="timed repeats per method (default 5)")
+    p.add_argument("--paced-ticks", type=number_arg(Range.of(0, COUNT.high), int), default=1000,
                    help="ticks per method in the paced measurement (one per tick of wall time; default 1000, 0 = none)")
-    p.add_argument("--out", default=f"{BENCHMARKS}/default_method.md", help="Markdown report to write")
+    p.add_argument("--out", type=path_arg(output_file), default=f"{BENCHMARKS}/default_method.md", help="Markdown report to write")
 
 
 def method_cases(tick: float) -> dict[str, dict]:

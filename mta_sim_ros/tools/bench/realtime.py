@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from ...validate import DURATION, PUBLISH_RATE, Range, number_arg, output_file, output_folder, path_arg
 from .common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, resolve_scene, ros_env, write_report
 
 HELP = "the node at real-time factor 1, steered over DDS; tick statistics"
@@ -30,13 +31,13 @@ TARGET_SHARE = 0.10  # p99.9 of the tick compute time must stay under this share
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--duration", type=float, default=600.0, help="simulated seconds to run (default 600)")
-    p.add_argument("--rate", type=float, default=100.0, help="publish (tick) rate, Hz (default 100)")
+    p.add_argument("--duration", type=number_arg(DURATION), default=600.0, help="simulated seconds to run (default 600)")
+    p.add_argument("--rate", type=number_arg(PUBLISH_RATE), default=100.0, help="publish (tick) rate, Hz (default 100)")
     p.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
-    p.add_argument("--out", default=f"{BENCHMARKS}/node_realtime.md", help="Markdown report to write")
-    p.add_argument("--domain-id", type=int, default=DEFAULT_DOMAIN,
+    p.add_argument("--out", type=path_arg(output_file), default=f"{BENCHMARKS}/node_realtime.md", help="Markdown report to write")
+    p.add_argument("--domain-id", type=number_arg(Range.of(0, 232), int), default=DEFAULT_DOMAIN,
                    help=f"ROS_DOMAIN_ID of the node and the player (default {DEFAULT_DOMAIN})")
-    p.add_argument("--keep", metavar="DIR", help="keep the bag and logs in DIR (default: a temp dir, removed)")
+    p.add_argument("--keep", metavar="DIR", type=path_arg(output_folder), help="keep the bag and logs in DIR (default: a temp dir, removed)")
     p.add_argument("--pin", action="store_true",
                    help="reserve the last CPU for the node's tick: node parameter tick_cpu = that CPU (the "
                         "node's other threads move off it) and the player started on the other CPUs")

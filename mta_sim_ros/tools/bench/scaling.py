@@ -41,6 +41,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from ...validate import COUNT, DURATION, Range, number_arg, output_file, path_arg
 from .common import BENCHMARKS, header_lines, log, ros_env
 from .stages import STAGES
 
@@ -55,12 +56,12 @@ TARGET_RSS_MB = 200.0
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--ticks", type=int, default=4000, help="timed ticks per (carts, rate) case (default 4000)")
-    p.add_argument("--paced-ticks", type=int, default=1500,
+    p.add_argument("--ticks", type=number_arg(COUNT, int), default=4000, help="timed ticks per (carts, rate) case (default 4000)")
+    p.add_argument("--paced-ticks", type=number_arg(Range.of(0, COUNT.high), int), default=1500,
                    help="ticks of the paced measurement (default train and n = 100 at 100 Hz; default 1500)")
-    p.add_argument("--long-duration", type=float, default=3600.0,
+    p.add_argument("--long-duration", type=number_arg(DURATION), default=3600.0,
                    help="simulated seconds of the long run with bag writing (default 3600)")
-    p.add_argument("--out", default=f"{BENCHMARKS}/scaling.md", help="Markdown report to write (PNGs beside it)")
+    p.add_argument("--out", type=path_arg(output_file), default=f"{BENCHMARKS}/scaling.md", help="Markdown report to write (PNGs beside it)")
     p.add_argument("--quick", action="store_true",
                    help="smoke run: n = 1, 3, 10; 100 Hz; 300 ticks; 100 paced; 60 s long run")
     p.add_argument("--replot", metavar="JSON", help="no measuring: rewrite --out and its figures from the raw "

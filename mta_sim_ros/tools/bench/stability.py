@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...validate import output_folder, path_arg
 from .common import BENCHMARKS, REPO, header_lines, log, write_report
 
 HELP = "largest accurate and first unstable step of every method on six scenes"
@@ -34,7 +35,7 @@ CHATTER = 0.01  # rad: so is a steering angle this far off (the rate limit caps 
 def add_arguments(p) -> None:
     p.add_argument("--quick", action="store_true", help="fewer steps and tolerances: a smoke run")
     p.add_argument("--scenes", nargs="*", help="only scenes whose file contains one of these words")
-    p.add_argument("--out-dir", default=str(REPO / BENCHMARKS), help="where to write the .md")
+    p.add_argument("--out-dir", type=path_arg(output_folder), default=str(REPO / BENCHMARKS), help="where to write the .md")
 
 
 class BareStepper:

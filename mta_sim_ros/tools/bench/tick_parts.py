@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import statistics
 
+from ...validate import COUNT, number_arg
 from .common import DEFAULT_SCENE, resolve_scene, side_by_side
 
 HELP = ("the node tick's parts in two forms (generic against template, Python against compiled), "
@@ -20,8 +21,8 @@ HELP = ("the node tick's parts in two forms (generic against template, Python ag
 
 def add_arguments(p) -> None:
     p.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene YAML (default {DEFAULT_SCENE})")
-    p.add_argument("--rounds", type=int, default=30, help="rounds; each times every variant once (default 30)")
-    p.add_argument("--calls", type=int, default=100, help="calls per variant per round (default 100)")
+    p.add_argument("--rounds", type=number_arg(COUNT, int), default=30, help="rounds; each times every variant once (default 30)")
+    p.add_argument("--calls", type=number_arg(COUNT, int), default=100, help="calls per variant per round (default 100)")
 
 
 def main(args) -> int:

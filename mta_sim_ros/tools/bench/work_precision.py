@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...validate import COUNT, PUBLISH_RATE, number_arg, output_folder, path_arg
 from .common import BENCHMARKS, REPO, header_lines, log, side_by_side
 
 HELP = "error vs CPU time of every integrator on six scenes, node and free mode"
@@ -42,11 +43,11 @@ SUBSTEPS = {1: ((1, 4, 16, 64), (1, 8)), 2: ((1, 2, 4, 8, 16), (1, 4)), 3: ((1, 
 
 def add_arguments(p) -> None:
     p.add_argument("--quick", action="store_true", help="fewer steps and tolerances, one repeat: a smoke run")
-    p.add_argument("--repeats", type=int, default=2,
+    p.add_argument("--repeats", type=number_arg(COUNT, int), default=2,
                    help=f"timed repeats of the runs cheaper than {CHEAP:g} CPU s/s, minimum taken (default 2)")
-    p.add_argument("--rate", type=float, default=100.0, help="tick rate, Hz (default 100, the node's)")
+    p.add_argument("--rate", type=number_arg(PUBLISH_RATE), default=100.0, help="tick rate, Hz (default 100, the node's)")
     p.add_argument("--scenes", nargs="*", help="only scenes whose file contains one of these words")
-    p.add_argument("--out-dir", default=str(REPO / BENCHMARKS), help="where to write the .md and .png")
+    p.add_argument("--out-dir", type=path_arg(output_folder), default=str(REPO / BENCHMARKS), help="where to write the .md and .png")
 
 
 def fixed_methods() -> tuple[str, ...]:

@@ -1,0 +1,138 @@
+"""Hostile command lines: every number, choice and output path of `mta run` and of every other
+tool. Each bad argument is one case: exit code 2, one line naming the option, the value and the
+rule, no traceback; nothing is written, and a bag already at the path is not lost, also when the
+run fails after its bag was opened."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hostile import CONFIG, assert_refused, mta, recorded_run, short_scene
+
+OLD_BAG = b"an earlier run's bag"
+
+
+@pytest.fixture
+def place(tmp_path):
+    """A scene, a file and a folder in the way, and an earlier bag that must survive."""
+    (tmp_path / "FILE").write_text("a file")
+    (tmp_path / "DIR").mkdir()
+    (tmp_path / "old.mcap").write_bytes(OLD_BAG)
+    return tmp_path
+
+
+def written(folder: Path) -> set[str]:
+    """Every file under ``folder`` but the fixture's own."""
+    return {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()} - {
+        "FILE", "old.mcap", "short.yaml", "long.yaml"}
+
+
+#: (id, arguments after `mta run --scene S --quiet`, texts the one line must hold)
+RUN_FAULTS = [
+    ("rate-nan", ["--rate", "nan"], ["argument --rate: nan", "a finite number in [1, 1000] Hz"]),
+    ("rate-inf", ["--rate", "inf"], ["argument --rate: inf", "a finite number"]),
+    ("rate-negative", ["--rate", "-1"], ["argument --rate: -1", "in [1, 1000] Hz"]),
+    ("rate-tiny", ["--rate", "1e-300"], ["argument --rate: 1e-300", "in [1, 1000] Hz"]),
+    ("rate-zero", ["--rate", "0"], ["argument --rate: 0", "in [1, 1000] Hz"]),
+    ("rate-text", ["--rate", "fast"], ["argument --rate: fast", "a number"]),
+    ("step-negative", ["--step", "-1"], ["argument --step: -1", "> 0"]),
+    ("step-nan", ["--step", "nan"], ["argument --step: nan", "a finite number > 0"]),
+    ("step-zero", ["--step", "0"], ["argument --step: 0", "> 0"]),
+    ("step-tiny", ["--step", "1e-9"], ["--step: 1e-09", "[2e-06, 0.02] s"]),
+    ("step-past-tick", ["--step", "0.5"], ["--step: 0.5", "1/publish_rate]"]),
+    ("method", ["--method", "rk5"], ["argument --method: invalid choice: 'rk5'", "RK45"]),
+    ("fidelity", ["--fidelity", "magic"], ["argument --fidelity: invalid choice: 'magic'"]),
+    ("bag-under-a-file", ["--bag", "{tmp}/FILE/x.mcap"], ["--bag: ", "FILE is a file"]),
+    ("bag-is-a-folder", ["--bag", "{tmp}/DIR"], ["--bag: ", "a file path: it is a folder"]),
+    ("report-is-a-folder", ["--report", "{tmp}/DIR"], ["--report: ", "it is a folder"]),
+    ("report-cannot-be-made", ["--report", "{tmp}/" + "x" * 300 + ".md"], ["--report: ", "(File name too long)"]),
+    ("report-under-proc", ["--report", "/proc/mta/report.md"], ["--report: '/proc/mta/report.md'", "cannot be written"]),
+    ("report-is-the-bag", ["--bag", "{tmp}/old.mcap", "--report", "{tmp}/old.mcap"], ["--report: ", "another file than the bag"]),
+    ("bag-is-the-scene", ["--bag", "{tmp}/short.yaml"], ["--bag: ", "another file than the input"]),
+    ("rate-past-the-ticks", ["--rate", "1000", "--scene", "{tmp}/long.yaml"], ["--rate: 1000", "at most 1e+07 ticks"]),
+    ("steps-past-the-run", ["--step", "2e-6", "--scene", "{tmp}/long.yaml"], ["--step: 2e-06", "at most 1e+08 integrator steps"]),
+]
+
+
+@pytest.mark.parametrize("case,args,expected", RUN_FAULTS, ids=[c[0] for c in RUN_FAULTS])
+def test_a_bad_run_argument_is_one_line_and_nothing_is_written(place, case, args, expected):
+    short_scene(place)
+    short_scene(place, duration=12000.0, name="long")
+    args = [a.replace("{tmp}", str(place)) for a in args]
+    scene = [] if "--scene" in args else ["--scene", place / "short.yaml"]
+    bag = [] if "--bag" in args else ["--bag", place / "old.mcap"]
+    assert_refused(mta("run", *scene, *bag, "--quiet", *args, cwd=place), *expected)
+    assert (place / "old.mcap").read_bytes() == OLD_BAG
+    assert written(place) == set()
+
+
+def test_a_run_failing_after_its_bag_opened_loses_no_earlier_bag(place):
+    """A train whose governor is too fast for rk4 at any step within the bound: the simulation
+    refuses it once the bag is open; the earlier bag stays, no part of the new one is left."""
+    train = place / "twitchy.yaml"
+    train.write_text((CONFIG / "trains" / "default.yaml").read_text()
+                     .replace("mass: 16000", "mass: 1e-6").replace("mass: 10000", "mass: 1e-6")
+                     .replace("mass: 8000", "mass: 1e-6").replace("kp: 34000", "kp: 1e9"))
+    scene = short_scene(place, train=train)
+    line = assert_refused(mta("run", "--scene", scene, "--bag", place / "old.mcap", "--quiet",
+                              "--fidelity", "dynamic", cwd=place), "integrator step: ", "steps per 0.02 s tick")
+    assert "speed governor" in line
+    assert (place / "old.mcap").read_bytes() == OLD_BAG
+    assert written(place) == {"twitchy.yaml"}
+
+
+def test_a_good_run_replaces_the_earlier_bag_whole(place):
+    done = mta("run", "--scene", short_scene(place), "--bag", place / "old.mcap", "--quiet", cwd=place)
+    assert done.returncode == 0, done.stderr
+    assert (place / "old.mcap").read_bytes()[:8] == b"\x89MCAP0\r\n"
+    assert written(place) == {"old.md"}
+
+
+#: (id, command line, texts the one line must hold)
+TOOL_FAULTS = [
+    ("replay-rate-zero", ["replay", "{bag}", "--rate", "0"], ["argument --rate: 0", "in [0.001, 1000]"]),
+    ("replay-rate-nan", ["replay", "{bag}", "--rate", "nan"], ["argument --rate: nan", "a finite number"]),
+    ("replay-start-negative", ["replay", "{bag}", "--start", "-1"], ["argument --start: -1", ">= 0"]),
+    ("replay-wait-inf", ["replay", "{bag}", "--wait-for-subscribers", "inf"], ["--wait-for-subscribers: inf"]),
+    ("resimulate-method", ["replay", "{bag}", "--resimulate", "--method", "rk5"], ["argument --method: invalid choice"]),
+    ("resimulate-step-nan", ["replay", "{bag}", "--resimulate", "--step", "nan"], ["argument --step: nan"]),
+    ("analyze-into-a-file", ["analyze", "{bag}", "-o", "{tmp}/FILE"], ["--output: ", "a folder: it is a file"]),
+    ("analyze-under-a-file", ["analyze", "{bag}", "-o", "{tmp}/FILE/report"], ["--output: ", "FILE is a file"]),
+    ("recover-onto-itself", ["recover", "{bag}", "-o", "{bag}"], ["--output: ", "another file than the bag"]),
+    ("recover-into-a-folder", ["recover", "{bag}", "-o", "{tmp}/DIR"], ["--output: ", "it is a folder"]),
+    ("follow-passes", ["follow", "--passes", "0"], ["argument --passes: 0", "in [1, 100]"]),
+    ("follow-length", ["follow", "--length", "1e300"], ["argument --length: 1e300", "(0, 5000] m"]),
+    ("follow-report", ["follow", "--report", "{tmp}/DIR"], ["argument --report: ", "it is a folder"]),
+    ("maneuver-name", ["maneuver", "--maneuver", "uturn"], ["argument --maneuver: invalid choice: 'uturn'"]),
+    ("maneuver-duration", ["maneuver", "--duration", "nan"], ["argument --duration: nan", "a finite number"]),
+    ("maneuver-param-alone", ["maneuver", "--param", "t0=1"], ["--param: given without --maneuver"]),
+    ("maneuver-param-nan", ["maneuver", "--maneuver", "step", "--param", "t0=nan"], ["t0: nan", "a finite number"]),
+    ("session-rate", ["session", "--rate", "0"], ["argument --rate: 0", "in [1, 1000]"]),
+    ("session-rtf", ["session", "--real-time-factor", "-1"], ["argument --real-time-factor: -1", "in [0, 1000]"]),
+    ("session-bag-dir", ["session", "--bag-dir", "{tmp}/FILE"], ["argument --bag-dir: ", "it is a file"]),
+    ("session-scene", ["session", "--scene", "{tmp}/FILE"], ["file: a str", "a YAML mapping"]),
+    ("bench-rate", ["bench", "realtime", "--rate", "nan"], ["argument --rate: nan"]),
+    ("bench-duration", ["bench", "realtime", "--duration", "1e300"], ["argument --duration: 1e300", "(0, 1e+06] s"]),
+    ("bench-domain", ["bench", "realtime", "--domain-id", "999"], ["argument --domain-id: 999", "in [0, 232]"]),
+    ("bench-repeats", ["bench", "method", "--repeats", "0"], ["argument --repeats: 0", "in [1, 1e+06]"]),
+    ("bench-out", ["bench", "kinks", "--out", "{tmp}/DIR"], ["argument --out: ", "it is a folder"]),
+    ("bench-ticks", ["bench", "scaling", "--ticks", "many"], ["argument --ticks: many", "an integer"]),
+    ("node-params-file-folder", ["node", "--params-file", "{tmp}/DIR"], ["file: unreadable"]),
+    ("no-command", ["fly"], ["argument COMMAND: invalid choice: 'fly'"]),
+]
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory) -> Path:
+    """The bag the tools' cases read (and must leave as it is)."""
+    return recorded_run(tmp_path_factory.mktemp("hostile_cli"))
+
+
+@pytest.mark.parametrize("case,args,expected", TOOL_FAULTS, ids=[c[0] for c in TOOL_FAULTS])
+def test_a_bad_argument_of_any_tool_is_one_line_and_exit_2(place, bag, case, args, expected):
+    before = bag.read_bytes()
+    args = [a.replace("{tmp}", str(place)).replace("{bag}", str(bag)) for a in args]
+    assert_refused(mta(*args, cwd=place, timeout=60), *expected)
+    assert bag.read_bytes() == before
+    assert written(place) == set()
