@@ -4,8 +4,11 @@ SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := venv
 
-# Network rule: DDS discovery stays on loopback for every target.
+# Network rule: DDS stays on loopback for every target: discovery on this host, and the Fast DDS
+# profile that binds every listening socket to 127.0.0.1 (Fast DDS 2.x reads FASTRTPS_, 3.x FASTDDS_).
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export FASTRTPS_DEFAULT_PROFILES_FILE := $(CURDIR)/config/fastdds_loopback.xml
+export FASTDDS_DEFAULT_PROFILES_FILE := $(CURDIR)/config/fastdds_loopback.xml
 # Default domain; a test or caller may override it (make ROS_DOMAIN_ID=7 ...).
 ROS_DOMAIN_ID ?= 42
 export ROS_DOMAIN_ID

@@ -21,7 +21,8 @@ package_name = 'mta_sim_ros'
 
 
 def config_data_files():
-    """Install config/**/*.yaml to share/<pkg>/config/..., keeping subfolders.
+    """Install config/**/*.yaml and config/*.xml (the Fast DDS loopback profile) to
+    share/<pkg>/config/..., keeping subfolders.
 
     Globbed at build time so new scene/train files are picked up without
     editing this file. Paths stay relative to setup.py (setuptools and colcon
@@ -29,8 +30,9 @@ def config_data_files():
     """
     here = os.path.dirname(os.path.abspath(__file__))
     by_dir = defaultdict(list)
-    for path in sorted(glob.glob(os.path.join(here, 'config', '**', '*.yaml'),
-                                 recursive=True)):
+    found = glob.glob(os.path.join(here, 'config', '**', '*.yaml'), recursive=True)
+    found += glob.glob(os.path.join(here, 'config', '*.xml'))
+    for path in sorted(found):
         rel = os.path.relpath(path, here)
         by_dir[os.path.join('share', package_name, os.path.dirname(rel))].append(rel)
     return sorted(by_dir.items())

@@ -32,15 +32,20 @@ def check_main(args: argparse.Namespace) -> int:
 
 
 def recover_main(args: argparse.Namespace) -> int:
+    """Exit 2 when the paths are refused (bag.output_target: nothing read or written), 1 when the
+    bag cannot be rebuilt, 0 when it is; one line on stderr either way it fails."""
     from pathlib import Path
 
-    from .bag import BagError, recover
+    from .bag import BagError, PathRefused, recover
 
     out = output_file(args.output or str(Path(args.bag).with_suffix(".recovered.mcap")), "--output")
     if out.exists() and Path(args.bag).exists() and out.samefile(args.bag):
         fail("--output", show(str(out)), "another file than the bag it recovers")
     try:
         report = recover(args.bag, str(out))
+    except PathRefused as err:
+        print(f"mta recover: {err}", file=sys.stderr)
+        return 2
     except (BagError, OSError) as err:
         print(f"mta recover: {err}", file=sys.stderr)
         return 1
@@ -112,7 +117,7 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis", selected)
 
     add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, "
-                           "tick-parts, kinks", selected)
+                           "tick-parts, kinks, sigkill", selected)
     return parser
 
 

@@ -128,6 +128,7 @@ class RunSession:
 
         self.recorder = None
         self.logged_bag_error = ""
+        self.ticks_waiting_for_bag = 0  # timer firings held while the bag writer was behind
         if self.cfg["record"]:
             in_bag = {t: qualified(t, namespace) for t in BAG_TOPICS}  # e.g. hitch_poses -> /unit1/hitch_poses
             self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in BAG_TOPICS.items()},
@@ -176,9 +177,14 @@ class RunSession:
 
     # -- the tick --------------------------------------------------------------------------
     def tick(self) -> None:
-        """One firing of the tick timer: nothing while paused or halted; else advance, publish
+        """One firing of the tick timer: nothing while paused or halted, or while the bag writer
+        is behind (recorder.RunRecorder.behind: counted in /diagnostics); else advance, publish
         and record one tick. A model error halts the run (logged, ERROR in /diagnostics)."""
         if self.paused or self.halted:
+            return
+        if self.recorder is not None and self.recorder.behind:  # bounds what a SIGKILL loses (recorder.py)
+            self.ticks_waiting_for_bag += 1
+            self.recorder.make_way()
             return
         profile = self.profile
         if profile is not None:
@@ -265,8 +271,11 @@ class RunSession:
         self.halted = ""
         self.pacing.restart(self.now)
         path = self._start_bag()
-        message = f"reset to the start of '{self.scene.name}' at t = {self.now:.3f} s" + (
-            f"; recording {path}" if path else "")
+        message = f"reset to the start of '{self.scene.name}' at t = {self.now:.3f} s"
+        if path:
+            message += f"; recording {path}"
+        elif self.recorder is not None:
+            message += f"; not recording: {self.recorder.error}"
         self.log.info(message)
         return message
 
@@ -342,6 +351,7 @@ class RunSession:
             "tick_compute_max_ms": stats.window_max * 1e3,
             "tick_cpu_p99_ms": self.cpu_stats.window_percentile(99) * 1e3,
             "deadline_misses": stats.deadline_misses,
+            "ticks_waiting_for_bag": self.ticks_waiting_for_bag,
             "tick_period_ms": self.period * 1e3,
             "steering_command_age_s": steering.age(),
             "steering_commands": steering.count,

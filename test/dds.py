@@ -1,6 +1,7 @@
 """Helpers for tests that talk to real processes over real DDS, on loopback only.
 
-Every process gets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and this test session's own
+Every process, the test's own included, gets the loopback environment (loopback.loopback_env:
+discovery on this host, the Fast DDS loopback profile) and this test session's own
 ROS_DOMAIN_ID, so parallel runs do not cross. The test side uses a private rclpy Context and
 spins an executor until a condition holds or a deadline passes (waiting is not an assertion).
 """
@@ -17,19 +18,22 @@ from pathlib import Path
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
+from mta_sim_ros.loopback import loopback_env
+
 REPO = Path(__file__).resolve().parents[1]
 # A domain of this session's own (valid Linux domains: 0-101); override with MTA_TEST_DOMAIN.
 DOMAIN = int(os.environ.get("MTA_TEST_DOMAIN", 1 + os.getpid() % 100))
 
 
 def ros_env() -> dict[str, str]:
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(DOMAIN),
-               PYTHONUNBUFFERED="1")
+    env = loopback_env(domain=DOMAIN)
+    env["PYTHONUNBUFFERED"] = "1"
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
     return env
 
 
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+# this process's own participants (Probe) too: Fast DDS reads the profile at the first one
+os.environ.update(loopback_env())
 
 
 def write_params(path: Path, **params) -> Path:
@@ -42,12 +46,15 @@ def write_params(path: Path, **params) -> Path:
     return path
 
 
-def start_node(params_file: Path, log: Path, ros_args=(), preexec_fn=None) -> subprocess.Popen:
-    """The simulator node in its own process; ``ros_args`` are passed after --ros-args."""
+def start_node(params_file: Path, log: Path | None, ros_args=(), preexec_fn=None) -> subprocess.Popen:
+    """The simulator node in its own process; ``ros_args`` are passed after --ros-args. Its output
+    goes to ``log``, or with ``log=None`` to a pipe (``proc.stdout``, read after it ends: a file
+    the node writes is subject to its file-size limit, a pipe is not)."""
     extra = ["--ros-args", *ros_args] if ros_args else []
+    out = subprocess.PIPE if log is None else log.open("w")
     return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", "node", "--params-file", str(params_file),
-                             *extra], env=ros_env(), stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO,
-                            preexec_fn=preexec_fn)
+                             *extra], env=ros_env(), stdout=out, stderr=subprocess.STDOUT, cwd=REPO,
+                            preexec_fn=preexec_fn, text=log is None)
 
 
 def start_python(code: str, log: Path) -> subprocess.Popen:

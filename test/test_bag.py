@@ -566,3 +566,31 @@ def test_sigkill_loses_at_most_one_chunk(tmp_path):
     messages, _ = read_with_rosbags(tmp_path / "killed_recovered.mcap")
     assert [(t_ns, m.data) for _, t_ns, m in messages] == [
         (1000 * i, 0.5 * i) for i in range(result["total_messages"])]
+
+
+def chunk_spans(path) -> list[tuple[int, int]]:
+    """(first, last) log time of each chunk in the file, in file order."""
+    with open(path, "rb") as f:
+        return [(r.message_start_time, r.message_end_time)
+                for r in StreamReader(f, emit_chunks=True).records if isinstance(r, Chunk)]
+
+
+@pytest.mark.parametrize("flush_after_ns", [0, 50 * 10**7])
+def test_flush_after_bounds_each_chunk_in_log_time(tmp_path, flush_after_ns):
+    """With flush_after_ns a chunk is written once it spans that much log time, long before it
+    fills (small messages, 64 KiB chunks); without it, by size only. messages_in_file counts what
+    a kill would leave."""
+    path = tmp_path / "timed.mcap"
+    bag = BagWriter(path, flush_after_ns=flush_after_ns)
+    bag.add_topic("/traction_power", "std_msgs/msg/Float64")
+    for i in range(1000):  # 10 s of log time at 100 Hz, 23 bytes of data a message
+        bag.write("/traction_power", float64(float(i)), log_time_ns=i * 10**7)
+    in_file = bag.messages_in_file
+    bag.close()
+    spans = chunk_spans(path)
+    if flush_after_ns:
+        assert len(spans) == 1000 // 51 + 1 and in_file == 51 * (1000 // 51)
+        assert all(last - first <= flush_after_ns for first, last in spans)
+    else:
+        assert len(spans) == 1 and in_file == 0
+    assert bag.messages_in_file == 1000

@@ -287,6 +287,43 @@ def test_a_disk_filling_up_mid_run_stops_recording_not_the_simulation(tmp_path, 
     assert len(read_bag(fixed)["/hitch_poses"]) > 100  # what was logged before the disk filled
 
 
+def test_a_reset_on_a_full_disk_leaves_no_empty_bag_and_says_so(tmp_path, probe):
+    """The disk fills mid-run (the node's file-size limit drops below its bag's size: every
+    write past it fails, EFBIG, as ENOSPC would); a reset then cannot write the new bag's
+    metadata. The new bag, which no message reached, is removed; the reset's answer, the log
+    and /diagnostics say so; the simulation goes on; the first bag is recoverable."""
+    import resource
+
+    node = start_node(params(tmp_path, real_time_factor=4.0), None)
+    try:
+        poses = wait_for_output(probe, node)
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        [first] = bags_in(tmp_path / "bags")
+        assert probe.spin_until(lambda: first.stat().st_size > 8192, 30.0)  # past the new bag's metadata
+        resource.prlimit(node.pid, resource.RLIMIT_FSIZE, (4096, 4096))  # the disk is full from now on
+        assert probe.spin_until(lambda: any("recording stopped" in d.status[0].message for d in diags), 30.0)
+        reply = probe.call(Trigger, "/reset", Trigger.Request())
+        assert reply.success and "not recording: recording stopped" in reply.message, reply.message
+        assert "held no message of this run: removed" in reply.message
+        assert probe.spin_until(lambda: any("held no message of this run: removed" in d.status[0].message
+                                            for d in diags), 10.0)
+        n = len(poses)
+        assert probe.spin_until(lambda: len(poses) > n + 20, 10.0), "the simulation stopped with the recording"
+    finally:
+        code = stop(node)
+        log = node.stdout.read()
+    assert code == 0, log
+    assert bags_in(tmp_path / "bags") == [first] and list((tmp_path / "bags").iterdir()) == [first]
+    errors = [line for line in log.splitlines() if "[ERROR]" in line]
+    assert len(errors) == 2 and all("recording stopped" in line for line in errors), log  # each failure once
+    assert "held no message of this run: removed" in errors[1], log
+    fixed = tmp_path / "fixed.mcap"
+    done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "recover", str(first), "-o", str(fixed)],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert len(read_bag(fixed)["/hitch_poses"]) > 10
+
+
 def test_a_namespace_moves_every_relative_name(tmp_path, probe):
     node = start_node(params(tmp_path), tmp_path / "node.log", ros_args=["-r", "__ns:=/unit1"])
     try:

@@ -17,7 +17,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from mta_sim_ros.bag import BagError, BagWriter, read_metadata, recover
-from mta_sim_ros.recorder import RunRecorder
+from mta_sim_ros.recorder import BACKLOG_SECONDS, RunRecorder
 
 TOPICS = {"/traction_power": "std_msgs/msg/Float64", "/applied_steering": "std_msgs/msg/Float64"}
 
@@ -106,3 +106,42 @@ def test_renamed_topics_land_under_their_bag_names(tmp_path):
     rec.write_batch({"traction_power": float64(5.0), "/clock_like": float64(6.0)}, 10)
     rec.close()
     assert read(path) == [("/unit1/traction_power", 10, 5.0), ("/clock_like", 10, 6.0)]
+
+
+def test_a_bag_no_message_reached_is_removed_and_the_error_says_so(tmp_path, monkeypatch):
+    """The first write fails (a disk full from the start): no chunk ever reached the file, so
+    the bag, which would pass for an empty run, is removed, and the error names it."""
+    def failing(self, *args, **kwargs):
+        raise BagError("disk full (simulated)")
+
+    monkeypatch.setattr(BagWriter, "write_raw", failing)
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    path = rec.start()
+    write_ticks(rec, 0, 10)
+    rec._sync()
+    assert "disk full (simulated)" in rec.error and f"{path} held no message of this run: removed" in rec.error
+    assert not path.exists() and not rec.recording
+    rec.close()
+
+
+def test_behind_says_when_more_than_the_backlog_waits_for_the_writer(tmp_path, monkeypatch):
+    """``behind`` is true while more than BACKLOG_SECONDS of log time handed over is not yet
+    written (the thread is held inside its first write here), false once it is."""
+    original, release = BagWriter.write_raw, threading.Event()
+
+    def held(self, *args, **kwargs):
+        release.wait()
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(BagWriter, "write_raw", held)
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    rec.start()
+    for i in range(int(BACKLOG_SECONDS * 100)):  # exactly BACKLOG_SECONDS at 100 Hz: not more
+        rec.write("/traction_power", float64(0.0), i * 10**7)
+    assert not rec.behind
+    rec.write("/traction_power", float64(0.0), round(BACKLOG_SECONDS * 1e9) + 10**7)
+    assert rec.behind
+    release.set()
+    rec._sync()
+    assert not rec.behind and rec.messages == int(BACKLOG_SECONDS * 100) + 1
+    rec.close()

@@ -63,12 +63,16 @@ def test_resimulating_a_run_bag_is_exact_and_another_method_deviates(run_bag):
     done = mta("replay", run_bag, "--resimulate", "--method", "euler")
     assert done.returncode == 0, done.stderr
     assert "deviations found" in done.stdout and "identical" not in done.stdout, done.stdout
-    for name in OUTPUTS:
+    # the applied steering follows the actuator's closed form (kinks split), whatever the method
+    stepped = [name for name in OUTPUTS if name != "applied_steering"]
+    for name in stepped:
         line = next(x for x in done.stdout.splitlines() if x.strip().startswith(name))
         assert "largest deviation" in line and "(exact)" not in line, line
     r = resimulate(str(run_bag), method="euler")
     assert not r.identical and r.method == "euler" and r.recorded_method == "rk4"
-    assert all(d.largest > 0 and not d.mismatches for d in r.outputs.values())
+    assert all(r.outputs[name].largest > 0 for name in stepped)
+    assert r.outputs["applied_steering"].largest == 0.0
+    assert not any(d.mismatches for d in r.outputs.values())
     assert 1e-5 < r.outputs["hitch_poses"].largest < 0.1  # first order at 10 ms: mm, not metres
 
 

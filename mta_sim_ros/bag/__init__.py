@@ -9,7 +9,7 @@
   ``recover()`` for files cut short by a killed writer.
 """
 
-from .reader import read_messages, read_metadata, recover, summary
+from .reader import PathRefused, output_target, read_messages, read_metadata, recover, summary
 from .schemas import BagError, MessageDefinitionNotFound, message_definition, schema_name
 from .writer import (
     DEFAULT_CHUNK_SIZE,
@@ -30,11 +30,13 @@ __all__ = [
     "DEFAULT_CHUNK_SIZE",
     "DEFAULT_QOS_YAML",
     "MessageDefinitionNotFound",
+    "PathRefused",
     "clock",
     "float64",
     "header",
     "joint_state",
     "message_definition",
+    "output_target",
     "pose_array",
     "qos_profiles_yaml",
     "read_messages",

@@ -7,9 +7,11 @@ footer); a file left behind by a killed writer must go through
 """
 
 import os
+import stat
 import struct
+import tempfile
 from collections import Counter
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from typing import Any, BinaryIO, Iterable, Iterator
 
@@ -115,6 +117,7 @@ class _Copier:
     topics: dict[int, str] = field(default_factory=dict)
     messages: Counter = field(default_factory=Counter)
     messages_dropped: int = 0
+    last_log_time: int | None = None  # ns, the latest log time copied
     chunks: int = 0
     chunks_dropped: int = 0
 
@@ -160,6 +163,44 @@ class _Copier:
         self.out.write_raw(topic, message.data, message.log_time, message.publish_time,
                            message.sequence)
         self.messages[topic] += 1
+        self.last_log_time = max(message.log_time, self.last_log_time or 0)
+
+
+class PathRefused(BagError):
+    """:func:`recover` refused its paths before reading or writing anything."""
+
+
+def output_target(src: PathLike, dst: PathLike) -> str:
+    """The file :func:`recover` writes for ``dst``: ``dst`` with its symlinks followed.
+
+    Refused (:class:`PathRefused`, one line): ``src`` missing or not a regular file; ``dst``
+    that is ``src`` however the path reaches it (a symlink, a hard link, a path through ``..``,
+    the same path: same device and inode); ``dst`` a directory; ``dst``'s folder missing. The
+    comparison is by device and inode, not by name, because every one of those names is the
+    one copy of a crashed bag.
+    """
+    src, dst = str(src), str(dst)
+    try:
+        src_stat = os.stat(src)
+    except OSError as exc:
+        raise PathRefused(f"cannot open bag file {src}: {exc.strerror or exc}") from exc
+    if not stat.S_ISREG(src_stat.st_mode):
+        raise PathRefused(f"{src} is not a file")
+    target = os.path.realpath(dst)
+    try:
+        dst_stat = os.stat(target)
+    except FileNotFoundError:
+        folder = os.path.dirname(target)
+        if not os.path.isdir(folder):
+            raise PathRefused(f"cannot write {dst}: folder {os.path.dirname(dst) or '.'} does not exist") from None
+        return target
+    except OSError as exc:
+        raise PathRefused(f"cannot write {dst}: {exc.strerror or exc}") from exc
+    if os.path.samestat(src_stat, dst_stat):
+        raise PathRefused(f"{dst} is {src} itself (the same file): refusing to write over the only copy of the bag")
+    if stat.S_ISDIR(dst_stat.st_mode):
+        raise PathRefused(f"{dst} is a directory: name the file to write")
+    return target
 
 
 def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) -> dict[str, Any]:
@@ -169,32 +210,37 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
     of the file (e.g. a writer killed with SIGKILL mid-chunk) ends the scan.
     The profile, schemas, channels (with their metadata), metadata records and
     every message of every complete chunk (and every complete loose message)
-    are written to ``dst`` with :class:`BagWriter`, in the original order.
+    are written with :class:`BagWriter`, in the original order.
     A chunk failing its CRC or decompression is skipped.  Attachments are not
-    copied.  ``src`` itself is never modified.
+    copied.
+
+    ``src`` is never written: :func:`output_target` refuses a ``dst`` that reaches it, and the
+    new file is written under a temporary name in ``dst``'s folder and renamed over ``dst`` only
+    once complete, so a failure (a full disk, a damaged ``src``) leaves ``dst`` as it was.
 
     Returns:
         ``{"messages": {topic: n}, "total_messages": n, "chunks": n_chunks_copied,
         "chunks_dropped": n, "messages_dropped": n_without_channel,
-        "bytes_dropped": n_unparsed_tail_bytes, "complete": src_had_a_data_end_record}``
+        "bytes_dropped": n_unparsed_tail_bytes, "complete": src_had_a_data_end_record,
+        "last_log_time_ns": latest_log_time_recovered_or_None}``
 
     Raises:
+        PathRefused: see :func:`output_target`.
         BagError: ``src`` is unreadable or not an MCAP file, ``dst`` is not
             writable, or ``src`` has one topic on channels of different types.
     """
-    src, dst = str(src), str(dst)
-    if os.path.abspath(src) == os.path.abspath(dst):
-        raise BagError(f"recover: source and destination are the same file {src}")
+    src = str(src)
+    target = output_target(src, dst)
     try:
         f = open(src, "rb")
     except OSError as exc:
         raise BagError(f"cannot open bag file {src}: {exc.strerror or exc}") from exc
-    with f:
+    with f, _replacing(target) as partial:
         size = os.fstat(f.fileno()).st_size
         stream = _ExactReader(f)
         records = StreamReader(stream, emit_chunks=True).records
         profile = _read_profile(src, records)
-        with BagWriter(dst, chunk_size=chunk_size, profile=profile) as out:
+        with BagWriter(partial, chunk_size=chunk_size, profile=profile) as out:
             copier = _Copier(out)
             good_end, complete = _copy_records(records, stream, copier)
     return {
@@ -205,7 +251,32 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
         "messages_dropped": copier.messages_dropped,
         "bytes_dropped": 0 if complete else size - good_end,
         "complete": complete,
+        "last_log_time_ns": copier.last_log_time,
     }
+
+
+@contextmanager
+def _replacing(target: str):
+    """A temporary path beside ``target``, renamed over it when the block ends without an
+    exception, removed otherwise. The new file keeps ``target``'s mode if it existed."""
+    folder, name = os.path.split(target)
+    try:
+        fd, partial = tempfile.mkstemp(prefix=f".{name}.", suffix=".part", dir=folder)
+    except OSError as exc:
+        raise BagError(f"cannot write in {folder}: {exc.strerror or exc}") from exc
+    os.close(fd)
+    try:
+        yield partial
+        try:
+            mode = stat.S_IMODE(os.stat(target).st_mode)
+        except FileNotFoundError:
+            mode = 0o644
+        os.chmod(partial, mode)
+        os.replace(partial, target)
+    except BaseException:
+        with suppress(FileNotFoundError):
+            os.unlink(partial)
+        raise
 
 
 def _read_profile(src: str, records: Iterator[Any]) -> str:

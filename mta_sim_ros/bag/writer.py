@@ -6,17 +6,17 @@ offline run and the ROS node both write the CDR bytes of ``mta_sim_ros.messages`
 with the same serializer.
 
 Crash safety (SIGKILL): messages are collected in a chunk that is compressed
-and written when its *uncompressed* size exceeds ``chunk_size``; every
+and written when its *uncompressed* size exceeds ``chunk_size`` or, with
+``flush_after_ns``, once it spans that much log time (so a slow topic, or a
+run whose messages are small, does not keep minutes of them in memory); every
 completed chunk is pushed to the operating system right away (no user-space
 buffering is left behind).  A killed writer therefore loses at most the open
-chunk: fewer than ``chunk_size`` bytes of uncompressed records plus the one
-message that would have closed it (default 64 KiB, i.e. a few hundred
-simulator messages), plus any schema/channel registered since the last chunk
-was written.  The file then has no summary or footer; use
-:func:`mta_sim_ros.bag.reader.recover` to rebuild a complete file.  On slow
-topics call :meth:`BagWriter.flush` periodically to bound the loss in time as
-well.  Data handed to the OS survives a process kill, not a power loss (no
-fsync).
+chunk: fewer than ``chunk_size`` bytes of uncompressed records and less than
+``flush_after_ns`` of log time, plus the one message that would have closed
+it, plus any schema/channel registered since the last chunk was written.  The
+file then has no summary or footer; use
+:func:`mta_sim_ros.bag.reader.recover` to rebuild a complete file.  Data
+handed to the OS survives a process kill, not a power loss (no fsync).
 """
 
 import math
@@ -130,7 +130,7 @@ class BagWriter:
 
     def __init__(self, path: str | os.PathLike, metadata: Mapping[str, Mapping[str, str]] | None = None,
                  chunk_size: int = DEFAULT_CHUNK_SIZE, compression: str = "zstd",
-                 profile: str = "ros2"):
+                 profile: str = "ros2", flush_after_ns: int = 0):
         """Open ``path`` and write the MCAP header and the given metadata records.
 
         Args:
@@ -139,6 +139,9 @@ class BagWriter:
             chunk_size: uncompressed bytes per chunk; bounds the loss on SIGKILL.
             compression: chunk compression, "zstd", "lz4" or "none".
             profile: MCAP profile; "ros2" for rosbag2 compatibility.
+            flush_after_ns: also write the open chunk once it spans this much log time (from
+                its first message to the one being written); bounds the loss on SIGKILL in
+                log time. 0: by size only.
         """
         self.path = str(path)
         if compression not in _COMPRESSION:
@@ -146,6 +149,13 @@ class BagWriter:
                              f"got {compression!r}")
         if chunk_size <= 0:
             raise ValueError(f"chunk_size must be positive, got {chunk_size}")
+        if flush_after_ns < 0:
+            raise ValueError(f"flush_after_ns must be >= 0, got {flush_after_ns}")
+        self._flush_after_ns = flush_after_ns
+        self._chunk_start_ns: int | None = None  # log time of the open chunk's first message
+        self._added = 0  # messages handed to mcap
+        #: Messages in chunks handed to the OS: what a SIGKILL now would leave for recover().
+        self.messages_in_file = 0
         records = {name: _check_str_map(f"metadata {name!r}", data)
                    for name, data in (metadata or {}).items()}
         self._channels: dict[str, _Channel] = {}
@@ -155,8 +165,9 @@ class BagWriter:
             self._file = open(self.path, "wb")
         except OSError as exc:
             raise BagError(f"cannot create bag file {self.path}: {exc.strerror or exc}") from exc
+        self._stream = _CountingStream(self._file)
         try:
-            self._mcap = McapWriter(self._file, chunk_size=chunk_size,
+            self._mcap = McapWriter(self._stream, chunk_size=chunk_size,
                                     compression=_COMPRESSION[compression], enable_crcs=True)
         except McapError as exc:  # the compression library is not installed
             self._abort()
@@ -259,9 +270,22 @@ class BagWriter:
             if not isinstance(value, int) or not 0 <= value < limit:
                 raise BagError(f"{self.path}: {name} for {topic} must be an int in [0, {limit}), "
                                f"got {value!r}")
+        writes = self._stream.writes
         self._io(f"write a message on {topic}", lambda: self._mcap.add_message(
             channel_id=channel.channel_id, log_time=log_time_ns, data=bytes(data),
             publish_time=publish_time_ns, sequence=sequence))
+        self._added += 1
+        if self._stream.writes != writes:  # the message filled the chunk: mcap wrote it
+            self._chunk_written()
+        elif self._chunk_start_ns is None:
+            self._chunk_start_ns = log_time_ns
+        elif self._flush_after_ns and log_time_ns - self._chunk_start_ns >= self._flush_after_ns:
+            self.flush()
+
+    def _chunk_written(self) -> None:
+        """Every message added so far is in the file; the next one opens a chunk."""
+        self.messages_in_file = self._added
+        self._chunk_start_ns = None
 
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
         """Write a metadata record ``name`` with string key/value pairs."""
@@ -273,6 +297,7 @@ class BagWriter:
     def flush(self) -> None:
         """Close the open chunk (if it holds messages) and hand it to the OS."""
         self._io("flush", self._mcap.flush)
+        self._chunk_written()
 
     def close(self) -> None:
         """Write the summary section and footer, and close the file.
@@ -286,6 +311,7 @@ class BagWriter:
         try:
             self._mcap.finish()
             self._file.close()
+            self.messages_in_file = self._added
         except OSError as exc:
             self._abort()
             raise BagError(f"cannot finish bag file {self.path}: {exc.strerror or exc}") from exc
@@ -344,6 +370,28 @@ class BagWriter:
             self._file.close()
         except OSError:
             pass  # the original error has been (or is being) reported
+
+
+class _CountingStream:
+    """The file as mcap's writer sees it, counting its writes: mcap writes to the file only
+    when a record is complete, so a write during ``add_message`` means a chunk went out."""
+
+    def __init__(self, file):
+        self._file = file
+        self.writes = 0
+
+    def write(self, data) -> int:
+        self.writes += 1
+        return self._file.write(data)
+
+    def tell(self) -> int:
+        return self._file.tell()
+
+    def flush(self) -> None:
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
 
 
 # -- message builders (plain dicts for BagWriter.write) ------------------------

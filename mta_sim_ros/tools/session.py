@@ -3,13 +3,13 @@ into it (``mta maneuver``), stops the node when the manoeuvre ends, analyses the
 (``mta analyze``) and prints where the bag and the report are.
 
 Each piece is a separate process talking over DDS, exactly as a user would run them; DDS stays on
-loopback (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST is forced for the children).
+loopback (the children get loopback.loopback_env: discovery on this host, the Fast DDS loopback
+profile).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -34,8 +34,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _mta(*args: str, **kwargs) -> subprocess.Popen:
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", *args], env=env, **kwargs)
+    from ..loopback import loopback_env
+
+    return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", *args], env=loopback_env(), **kwargs)
 
 
 def main(args: argparse.Namespace) -> int:

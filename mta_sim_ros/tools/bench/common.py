@@ -99,11 +99,13 @@ def resolve_scene(path: str) -> str:
 
 
 def ros_env(domain: int) -> dict[str, str]:
-    """The environment of a child process that talks DDS: discovery on loopback only, its own
-    domain, no static peers elsewhere, this checkout importable."""
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain),
-               PYTHONUNBUFFERED="1")
-    env.pop("ROS_STATIC_PEERS", None)
+    """The environment of a child process that talks DDS: loopback.loopback_env (discovery on this
+    host, the Fast DDS loopback profile, no static peers elsewhere), its own domain, this checkout
+    importable."""
+    from ...loopback import loopback_env
+
+    env = loopback_env(domain=domain)
+    env["PYTHONUNBUFFERED"] = "1"
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
     return env
 
