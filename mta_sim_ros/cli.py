@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-from .validate import EXIT_INPUT, InputError, fail, one_line, output_file, show
+from .validate import EXIT_INPUT, InputError, one_line
 
 
 EXIT_INTERRUPTED = 130  # as a shell reports a process ended by SIGINT
@@ -38,9 +38,7 @@ def recover_main(args: argparse.Namespace) -> int:
 
     from .bag import BagError, PathRefused, recover
 
-    out = output_file(args.output or str(Path(args.bag).with_suffix(".recovered.mcap")), "--output")
-    if out.exists() and Path(args.bag).exists() and out.samefile(args.bag):
-        fail("--output", show(str(out)), "another file than the bag it recovers")
+    out = args.output or str(Path(args.bag).with_suffix(".recovered.mcap"))
     try:
         report = recover(args.bag, str(out))
     except PathRefused as err:
