@@ -38,11 +38,9 @@ def recover_main(args: argparse.Namespace) -> int:
 
     from .bag import BagError, PathRefused, recover
 
-    # the paths are checked by recover itself (bag.output_target): the input is never written,
-    # however the output reaches it, and a missing folder is refused, not made
     out = args.output or str(Path(args.bag).with_suffix(".recovered.mcap"))
     try:
-        report = recover(args.bag, out)
+        report = recover(args.bag, str(out))
     except PathRefused as err:
         print(f"mta recover: {err}", file=sys.stderr)
         return 2

@@ -99,8 +99,8 @@ TOOL_FAULTS = [
     ("resimulate-step-nan", ["replay", "{bag}", "--resimulate", "--step", "nan"], ["argument --step: nan"]),
     ("analyze-into-a-file", ["analyze", "{bag}", "-o", "{tmp}/FILE"], ["--output: ", "a folder: it is a file"]),
     ("analyze-under-a-file", ["analyze", "{bag}", "-o", "{tmp}/FILE/report"], ["--output: ", "FILE is a file"]),
-    ("recover-onto-itself", ["recover", "{bag}", "-o", "{bag}"], ["itself (the same file): refusing to write over"]),
-    ("recover-into-a-folder", ["recover", "{bag}", "-o", "{tmp}/DIR"], ["is a directory: name the file to write"]),
+    ("recover-onto-itself", ["recover", "{bag}", "-o", "{bag}"], ["(the same file): refusing to write over"]),
+    ("recover-into-a-folder", ["recover", "{bag}", "-o", "{tmp}/DIR"], ["DIR is a directory"]),
     ("follow-passes", ["follow", "--passes", "0"], ["argument --passes: 0", "in [1, 100]"]),
     ("follow-length", ["follow", "--length", "1e300"], ["argument --length: 1e300", "(0, 5000] m"]),
     ("follow-report", ["follow", "--report", "{tmp}/DIR"], ["argument --report: ", "it is a folder"]),
@@ -118,6 +118,7 @@ TOOL_FAULTS = [
     ("bench-repeats", ["bench", "method", "--repeats", "0"], ["argument --repeats: 0", "in [1, 1e+06]"]),
     ("bench-out", ["bench", "kinks", "--out", "{tmp}/DIR"], ["argument --out: ", "it is a folder"]),
     ("bench-ticks", ["bench", "scaling", "--ticks", "many"], ["argument --ticks: many", "an integer"]),
+    ("bench-sigkill-factor", ["bench", "sigkill", "--factors", "1", "nan"], ["argument --factors: nan", "in [0, 1000]"]),
     ("node-params-file-folder", ["node", "--params-file", "{tmp}/DIR"], ["file: unreadable"]),
     ("no-command", ["fly"], ["argument COMMAND: invalid choice: 'fly'"]),
 ]

@@ -41,13 +41,16 @@ import tempfile
 import time
 from pathlib import Path
 
-from ...validate import COUNT, DURATION, Range, number_arg, output_file, path_arg
+from ...validate import COUNT, DURATION, MAX_TICKS, Range, number_arg, output_file, path_arg
 from .common import BENCHMARKS, header_lines, log, ros_env
 from .stages import STAGES
 
 HELP = "tick cost vs carts and publish rate; cost per simulated second vs run length; peak memory of a 1-hour run (offline)"
 CARTS = (1, 2, 3, 5, 10, 20, 50, 100)
 RATES = (50.0, 100.0, 200.0)
+#: s: the scenes' duration when a session runs until stopped: past any measurement, and a run of
+#: it at the highest rate within validate.MAX_TICKS
+ENDLESS = MAX_TICKS / max(RATES)
 METHOD, STEP = "rk4", 0.01  # the node's default (config/sim.yaml, scenes)
 STEER_PERIOD = 60.0  # s
 CHECKPOINT = 10.0  # s of simulated time between the long run's samples
@@ -172,7 +175,7 @@ class SessionTicks:
     """The node's run session on the n-cart scene at ``rate``, recording into ``folder``; with
     ``profile`` a StageProfile hears every tick (and ``markers`` says which ticks drew markers)."""
 
-    def __init__(self, n: int, rate: float, folder: Path, profile: bool = True, duration: float = 1e9):
+    def __init__(self, n: int, rate: float, folder: Path, profile: bool = True, duration: float = ENDLESS):
         import logging
 
         from ...params import PARAMS

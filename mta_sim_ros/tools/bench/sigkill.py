@@ -30,6 +30,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from ...params import argument
+from ...validate import COUNT, DURATION, PUBLISH_RATE, Range, number_arg, output_file, path_arg
 from .common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, log, resolve_scene, ros_env, table, write_report
 
 HELP = "simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor"
@@ -52,16 +54,16 @@ class Kill:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--rates", type=float, nargs="+", default=[10.0, 100.0], help="tick rates, Hz (default 10 100)")
-    p.add_argument("--factors", type=float, nargs="+", default=[0.0, 1.0, 4.0],
+    p.add_argument("--rates", type=number_arg(PUBLISH_RATE), nargs="+", default=[10.0, 100.0], help="tick rates, Hz (default 10 100)")
+    p.add_argument("--factors", type=argument("real_time_factor"), nargs="+", default=[0.0, 1.0, 4.0],
                    help="real-time factors (default 0 1 4; 0 = as fast as possible)")
-    p.add_argument("--sim-seconds", type=float, default=8.0,
+    p.add_argument("--sim-seconds", type=number_arg(DURATION), default=8.0,
                    help="simulated seconds before the kill, plus a random part of a second (default 8)")
-    p.add_argument("--repeats", type=int, default=3, help="kills per combination (default 3)")
+    p.add_argument("--repeats", type=number_arg(COUNT, int), default=3, help="kills per combination (default 3)")
     p.add_argument("--scene", default=DEFAULT_SCENE, help=f"scene (default {DEFAULT_SCENE})")
-    p.add_argument("--domain-id", type=int, default=DEFAULT_DOMAIN,
+    p.add_argument("--domain-id", type=number_arg(Range.of(0, 232), int), default=DEFAULT_DOMAIN,
                    help=f"ROS_DOMAIN_ID of the node and the listener (default {DEFAULT_DOMAIN})")
-    p.add_argument("--out", default=f"{BENCHMARKS}/sigkill.md", help="Markdown report to write")
+    p.add_argument("--out", type=path_arg(output_file), default=f"{BENCHMARKS}/sigkill.md", help="Markdown report to write")
 
 
 class ClockListener:
