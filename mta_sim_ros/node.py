@@ -3,9 +3,18 @@
 Glue between ROS and :class:`session.RunSession`, which decides everything (pacing, watchdog,
 pause and reset, parameter checks, diagnostics, the bag): this module declares the parameters
 of params.PARAMS, makes the publishers, subscriptions, services and the two steady-clock timers
-(the tick every session.period seconds, the diagnostics at 1 Hz) and hands each callback
+(the tick timer every session.timer_period seconds, the diagnostics at 1 Hz) and hands each callback
 straight to the session. The session's messages arrive here as CDR bytes (messages.Encoders), published as
 they are.
+
+Commands are taken by the tick timer, not by the executor: the command subscriptions sit in a
+callback group the executor never waits on (TakenByTheTick), and each firing of the timer first
+takes what they hold, at most MAX_TAKE a topic, then runs the ticks due. A flood of commands
+(10 kHz) thus costs the executor nothing: each one once cost a pass of rclpy's wait loop, and
+at ~8 kHz those starved the tick. The reader keeps the newest QOS.depth commands of each topic;
+older ones of a flood are overwritten before the tick takes them, and what is taken is recorded.
+A command waits at most one timer period (the tick, at most pacing.MAX_TIMER_PERIOD) to be
+taken, as it would wait for the tick that applies it.
 
 Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock and
 /diagnostics, which are global by convention):
@@ -24,6 +33,7 @@ import time
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -38,6 +48,22 @@ from .session import RunSession
 from .timing import reserve_cpu
 from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC
 
+#: most commands of one topic taken at one firing of the tick timer (the reader holds QOS.depth)
+MAX_TAKE = 2 * QOS.depth
+
+
+class TakenByTheTick(CallbackGroup):
+    """A callback group the executor never waits on nor runs: its subscriptions' messages are
+    taken by the tick timer (SimNode._take_commands)."""
+
+    def can_execute(self, entity) -> bool:
+        return False
+
+    def beginning_execution(self, entity) -> bool:
+        return False
+
+    def ending_execution(self, entity) -> None:
+        pass
 
 
 def descriptor(p: Param) -> ParameterDescriptor:
@@ -65,8 +91,15 @@ class SimNode(Node):
                      for topic, type_name in BAG_TOPICS.items() if topic not in (*COMMAND_TOPICS, WATCHDOG_TOPIC)}
         self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish, log=self.get_logger(),
                                   name=self.get_name(), namespace=self.get_namespace(), profile=profile)
+        taken = TakenByTheTick()
+        self.commands = {}
         for topic in COMMAND_TOPICS:
-            self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data), QOS)
+            sub = self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data),
+                                           QOS, callback_group=taken)
+            for handler in sub.event_handlers:  # its QoS events (an incompatible publisher) are still said
+                handler.callback_group = self.default_callback_group
+                self.default_callback_group.add_entity(handler)
+            self.commands[topic] = sub
         self.create_service(Trigger, "reset", self._on_reset)
         self.create_service(SetBool, "pause", self._on_pause)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -82,11 +115,22 @@ class SimNode(Node):
     def _make_timer(self) -> None:
         if self.timer is not None:
             self.destroy_timer(self.timer)
-        self.period = self.session.period
-        self.timer = self.create_timer(self.period, self._on_tick, clock=self.steady)
+        self.timer_period = self.session.timer_period
+        self.timer = self.create_timer(self.timer_period, self._on_tick, clock=self.steady)
 
     def _on_tick(self) -> None:
-        self.session.tick()
+        self._take_commands()
+        self.session.fire()
+
+    def _take_commands(self) -> None:
+        """Hand the session the commands waiting in each command subscription, oldest first."""
+        for topic, sub in self.commands.items():
+            for _ in range(MAX_TAKE):
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                self.session.command(topic, taken[0].data)
 
     def _on_reset(self, request, response):
         response.message = self.session.reset()
@@ -100,7 +144,7 @@ class SimNode(Node):
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         reason = self.session.set_parameters({p.name: p.value for p in params})
-        if self.session.period != self.period:
+        if self.session.timer_period != self.timer_period:
             self._make_timer()
         return SetParametersResult(successful=not reason, reason=reason)
 

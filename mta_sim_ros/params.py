@@ -12,6 +12,16 @@ from . import validate
 from .integrate import METHODS
 
 
+def last_cpu() -> int:
+    """The highest-numbered CPU this process may run on: the end of tick_cpu's range, so that
+    the declared range names CPUs of this machine (timing.reserve_cpu still refuses one outside
+    the process's affinity, or the only one)."""
+    try:
+        return max(os.sched_getaffinity(0))
+    except (AttributeError, OSError, ValueError):  # not Linux
+        return max(0, (os.cpu_count() or 1) - 1)
+
+
 @dataclass(frozen=True)
 class Param:
     name: str
@@ -43,7 +53,7 @@ PARAMS = (
     Param("record", True, "write every run to an MCAP bag", live=False),
     Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),
     Param("tick_cpu", -1, "CPU for the tick's thread alone (the node's other threads move off it; start "
-          "other processes elsewhere for a reserved core); -1 = no pinning", live=False, low=-1, high=4095),
+          "other processes elsewhere for a reserved core); -1 = no pinning", live=False, low=-1, high=last_cpu()),
     Param("fidelity", "", "model level: '' = the scene's (auto: the cheapest meeting its needs), or auto, "
           "kinematic, dynamic, slip; a change applies at the next reset", live=True,
           choices=("", "auto", "kinematic", "dynamic", "slip")),

@@ -6,7 +6,8 @@ calls of it. It never imports rclpy: time comes from an injected steady wall ``c
 sets the time instead of sleeping), messages leave as CDR bytes through an injected ``publish``,
 log lines through an injected ``log`` and the bytes are made by injected :class:`Encoders`.
 
-Each tick (:meth:`RunSession.tick`) advances the model by one tick of simulated time holding the
+Each firing of the node's tick timer (:meth:`RunSession.fire`) runs the ticks due by the wall
+clock (pacing.py). Each tick (:meth:`RunSession.tick`) advances the model by one tick of simulated time holding the
 latest commands (zero-order hold), publishes the outputs stamped with simulation time and
 records the same bytes. Published time = clock_offset + the run's simulation time: a reset starts
 the model again while /clock goes on.
@@ -129,6 +130,7 @@ class RunSession:
         self.recorder = None
         self.logged_bag_error = ""
         self.ticks_waiting_for_bag = 0  # timer firings held while the bag writer was behind
+        self.ticks_caught_up = 0  # ticks run by a firing after its first, to make up a lag (pacing.py)
         if self.cfg["record"]:
             in_bag = {t: qualified(t, namespace) for t in BAG_TOPICS}  # e.g. hitch_poses -> /unit1/hitch_poses
             self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in BAG_TOPICS.items()},
@@ -175,17 +177,34 @@ class RunSession:
         """Seconds between two ticks on the wall clock (0 = as fast as possible)."""
         return self.pacing.period
 
+    @property
+    def timer_period(self) -> float:
+        """Seconds between two firings of the tick timer (pacing.py: the period, at most
+        pacing.MAX_TIMER_PERIOD)."""
+        return self.pacing.timer_period
+
     # -- the tick --------------------------------------------------------------------------
-    def tick(self) -> None:
-        """One firing of the tick timer: nothing while paused or halted, or while the bag writer
-        is behind (recorder.RunRecorder.behind: counted in /diagnostics); else advance, publish
-        and record one tick. A model error halts the run (logged, ERROR in /diagnostics)."""
+    def fire(self) -> int:
+        """One firing of the tick timer: the ticks due now (pacing.Pacing.due: one when on time,
+        more to make up a late firing, none while paused); returns how many ran."""
+        ran = 0
+        for _ in range(0 if self.halted else self.pacing.due(self.now)):
+            if not self.tick():
+                break
+            ran += 1
+        self.ticks_caught_up += max(0, ran - 1)
+        return ran
+
+    def tick(self) -> bool:
+        """Advance, publish and record one tick; returns whether it did. Nothing while paused or
+        halted, or while the bag writer is behind (recorder.RunRecorder.behind: counted in
+        /diagnostics). A model error halts the run (logged, ERROR in /diagnostics)."""
         if self.paused or self.halted:
-            return
+            return False
         if self.recorder is not None and self.recorder.behind:  # bounds what a SIGKILL loses (recorder.py)
             self.ticks_waiting_for_bag += 1
             self.recorder.make_way()
-            return
+            return False
         profile = self.profile
         if profile is not None:
             profile.start()
@@ -198,7 +217,7 @@ class RunSession:
             self.halted = str(err)
             self.log.error(f"simulation halted (call reset to start again): {err}")
             self.publish_diagnostics()
-            return
+            return False
         if profile is not None:
             profile.mark("advance")
         out = self.sim.outputs()
@@ -227,6 +246,7 @@ class RunSession:
         self.cpu_stats.record(cpu)
         if profile is not None:
             profile.done()
+        return True
 
     def _record(self, msgs: dict[str, bytes]) -> None:
         """Log messages (topic -> CDR bytes) at the current simulation time. A failure of the
@@ -352,6 +372,7 @@ class RunSession:
             "tick_cpu_p99_ms": self.cpu_stats.window_percentile(99) * 1e3,
             "deadline_misses": stats.deadline_misses,
             "ticks_waiting_for_bag": self.ticks_waiting_for_bag,
+            "ticks_caught_up": self.ticks_caught_up,
             "tick_period_ms": self.period * 1e3,
             "steering_command_age_s": steering.age(),
             "steering_commands": steering.count,

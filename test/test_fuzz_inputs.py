@@ -27,6 +27,7 @@ from hypothesis import strategies as st
 from mta_sim_ros.integrate import IntegrationError
 from mta_sim_ros.model import loader, spec
 from mta_sim_ros.model.guards import ModelValidityError
+from mta_sim_ros.pacing import MAX_TIMER_PERIOD
 from mta_sim_ros.params import BY_NAME, PARAMS, ConfigError, read_params_file
 from mta_sim_ros.session import RunSession
 from mta_sim_ros.sim import Simulation
@@ -258,9 +259,11 @@ def started(cfg: dict, clock: FakeClock) -> RunSession | None:
 
 
 def tick(session: RunSession, clock: FakeClock, n: int) -> None:
+    """n firings of the tick timer, one timer period apart: a period a ROS timer can hold."""
     for _ in range(n):
-        clock.advance(session.sim.tick)
-        session.tick()
+        assert 0.0 <= session.timer_period <= MAX_TIMER_PERIOD, session.timer_period
+        clock.advance(session.timer_period or session.sim.tick)
+        session.fire()
 
 
 @RUNS

@@ -246,10 +246,26 @@ def test_commands_reach_the_session_and_a_burst_does_not_stop_the_node(tmp_path,
     assert math.isnan(steering[0]) and steering[1] == 10.0  # logged as received
 
 
+def test_commands_taken_by_the_tick_still_say_an_incompatible_publisher(tmp_path, probe):
+    """The command subscriptions are out of the executor's reach (node.TakenByTheTick), their QoS
+    events are not: a best-effort publisher, which a reliable subscription cannot hear, is said."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    log = tmp_path / "node.log"
+    node = start_node(params(tmp_path, record=False), log)
+    try:
+        wait_for_output(probe, node)
+        probe.node.create_publisher(Float64, "/steering_angle", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+        assert probe.spin_until(lambda: "incompatible QoS" in log.read_text(), 20.0), log.read_text()[-2000:]
+        assert node.poll() is None
+    finally:
+        assert stop(node) == 0
+
+
 @pytest.mark.parametrize("bad,expected", [
     (dict(publish_rate=-5.0), "publish_rate"),  # refused by rclpy (the declared range)
     (dict(scene_file="/nowhere/scene.yaml"), "scene_file"),  # refused by the session
-    (dict(tick_cpu=4000), "tick_cpu"),  # in range, but no such CPU here (the node's own check)
+    (dict(tick_cpu=4000), "tick_cpu"),  # past this machine's last CPU (the declared range)
 ])
 def test_invalid_parameters_stop_the_start_with_one_message(tmp_path, bad, expected):
     """Exit code 2 and one line naming the parameter (the session's checks: test_session.py)."""
@@ -338,6 +354,17 @@ def test_a_namespace_moves_every_relative_name(tmp_path, probe):
     assert {"/unit1/hitch_poses", "/unit1/traction_power", "/clock", "/diagnostics"} <= topics
 
 
+def test_a_tiny_real_time_factor_at_start_runs_the_node_standing_still(tmp_path, probe):
+    node = start_node(params(tmp_path, real_time_factor=1e-12, record=False), tmp_path / "node.log")
+    try:
+        diags = probe.subscribe("/diagnostics", DiagnosticArray)
+        assert probe.spin_until(lambda: len(diags) >= 2 or node.poll() is not None, 30.0)
+        assert node.poll() is None
+        assert float(value(diags[-1], "sim_time_s")) == 0.0 and float(value(diags[-1], "tick_period_ms")) > 1e12
+    finally:
+        assert stop(node) == 0
+
+
 def test_parameters_end_to_end(tmp_path, probe):
     """The table's ranges and notes reach ROS (describe); a fixed parameter and an out-of-range
     value are refused with a reason; real_time_factor and frame_id change live (the tick timer
@@ -364,8 +391,13 @@ def test_parameters_end_to_end(tmp_path, probe):
         refused = set_param("publish_rate", 20.0)
         assert not refused.successful and "cannot change while running" in refused.reason
         assert not set_param("real_time_factor", -1.0).successful
-        assert set_param("real_time_factor", 3.0).successful
         clock = probe.subscribe("/clock", Clock)
+        for tiny in (1e-12, 5e-324):  # inside the range: once a timer period rclpy could not hold
+            assert set_param("real_time_factor", tiny).successful
+            n = len(clock)
+            probe.spin_until(lambda: False, 0.3)
+            assert node.poll() is None and len(clock) <= n + 1  # alive, (nearly) standing still
+        assert set_param("real_time_factor", 3.0).successful
         assert probe.spin_until(lambda: len(clock) > 100, 10.0)  # still ticking, now faster
 
         assert probe.spin_until(lambda: markers, 10.0)

@@ -21,6 +21,7 @@ from visualization_msgs.msg import MarkerArray
 from mta_sim_ros.bag import BagError, read_messages, read_metadata
 from mta_sim_ros.diagnostics import ERROR, OK, WARN
 from mta_sim_ros.model.loader import load_scene
+from mta_sim_ros.pacing import CATCH_UP, MAX_TIMER_PERIOD
 from mta_sim_ros.params import PARAMS, ConfigError
 from mta_sim_ros.session import RunSession
 from mta_sim_ros.tools.replay import resimulate
@@ -77,10 +78,18 @@ class Run:
                             profile=profile)
 
     def ticks(self, n: int, wall: float = TICK) -> None:
-        """n firings of the tick timer, ``wall`` seconds apart."""
+        """n ticks, ``wall`` seconds apart (each, RunSession.tick)."""
         for _ in range(n):
             self.clock.advance(wall)
             self.s.tick()
+
+    def firings(self, n: int, wall: float = TICK) -> list[int]:
+        """n firings of the tick timer, ``wall`` seconds apart: the ticks each ran (RunSession.fire)."""
+        ran = []
+        for _ in range(n):
+            self.clock.advance(wall)
+            ran.append(self.s.fire())
+        return ran
 
     def topic(self, name: str) -> list[bytes]:
         return [m[name] for m in self.published if name in m]
@@ -256,6 +265,61 @@ def test_a_new_real_time_factor_changes_the_period_and_measures_afresh(tmp_path)
     values = r.s.diagnostics().values
     assert values["real_time_factor"] == pytest.approx(2.0, rel=1e-9) and values["lag_s"] == pytest.approx(0.0, abs=1e-9)
     assert values["real_time_factor_target"] == 2.0
+
+
+def test_a_firing_on_time_runs_one_tick_and_simulated_time_never_runs_ahead(tmp_path):
+    r = Run(tmp_path, record=False)
+    assert r.firings(50) == [1] * 50
+    assert r.s.now == pytest.approx(50 * TICK, abs=1e-12)
+    r.clock.advance(0.5 * TICK)  # a firing before the next tick's end: nothing yet
+    assert r.s.fire() == 0
+    assert r.firings(1, wall=0.5 * TICK) == [1]
+    assert r.s.diagnostics().values["ticks_caught_up"] == 0
+
+
+def test_late_firings_are_made_up_at_most_catch_up_ticks_a_firing(tmp_path):
+    """A firing a whole second late (a flood, a busy core) runs CATCH_UP ticks; the next ones run
+    CATCH_UP each until the lag is gone, then one: the lag is back under a tick after
+    ceil(lag / ((CATCH_UP - 1) tick)) firings, instead of staying for good."""
+    r = Run(tmp_path, record=False)
+    r.firings(10)
+    r.clock.advance(1.0)
+    assert r.s.fire() == CATCH_UP
+    behind = 1.0 - CATCH_UP * TICK  # 1.0 / TICK ticks were due at the late firing
+    needed = math.ceil(behind / ((CATCH_UP - 1) * TICK) - 1e-9)
+    ran = r.firings(needed + 5)
+    assert ran[:needed - 1] == [CATCH_UP] * (needed - 1) and ran[needed:] == [1] * 5
+    assert r.s.diagnostics().values["lag_s"] < TICK
+    assert r.s.now == pytest.approx(10 * TICK + 1.0 + (needed + 5) * TICK, abs=1e-9)
+    assert r.s.diagnostics().values["ticks_caught_up"] == sum(ran) + CATCH_UP - len(ran) - 1
+
+
+def test_firings_twice_the_period_apart_run_two_ticks_each(tmp_path):
+    r = Run(tmp_path, record=False)
+    assert r.firings(20, wall=2 * TICK) == [2] * 20
+    assert r.s.diagnostics().values["lag_s"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_as_fast_as_possible_is_one_tick_a_firing_and_pause_is_none(tmp_path):
+    r = Run(tmp_path, record=False, real_time_factor=0.0)
+    assert r.s.timer_period == 0.0
+    assert r.firings(5, wall=0.0) == [1] * 5
+    r.s.pause(True)
+    assert r.firings(5, wall=1.0) == [0] * 5
+
+
+@pytest.mark.parametrize("target", [1e-12, 1e-300, 5e-324])
+def test_a_tiny_real_time_factor_is_a_timer_every_max_period_and_no_tick_for_ages(tmp_path, target):
+    """Inside the declared range [0, 1000]: a period of TICK / 1e-12 s is no timer's (rclpy's
+    overflowed and killed the node), so the timer fires every MAX_TIMER_PERIOD and ticks when due."""
+    for live in (False, True):
+        r = Run(tmp_path, record=False, **({} if live else {"real_time_factor": target}))
+        if live:
+            assert r.s.set_parameters({"real_time_factor": target}) == ""
+        assert r.s.timer_period == MAX_TIMER_PERIOD and r.s.period > 1e9
+        assert r.firings(100, wall=MAX_TIMER_PERIOD) == [0] * 100
+        assert r.s.set_parameters({"real_time_factor": 1.0}) == "" and r.s.timer_period == TICK
+        assert r.firings(3) == [1] * 3
 
 
 def test_tick_statistics_and_deadline_misses(tmp_path):
