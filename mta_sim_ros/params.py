@@ -31,6 +31,14 @@ class Param:
     low: float | None = None
     high: float | None = None
     choices: tuple = ()
+    text: validate.Rule | None = None  # a rule on a string value (its text says what it must be)
+
+
+#: a frame name as tf2 takes it: no leading '/', no spaces or control characters, not empty, and
+#: short (it is in every message the node publishes)
+FRAME_ID = validate.Rule("a frame name: 1 to 256 printable characters, no spaces, not starting with '/'",
+                         lambda v: 0 < len(v) <= 256 and v.isprintable() and not any(c.isspace() for c in v)
+                         and not v.startswith("/"))
 
 
 PARAMS = (
@@ -48,7 +56,7 @@ PARAMS = (
           low=0.0, high=3600.0),
     Param("watchdog_action", "hold", "on a stale command: 'hold' the last one or steer 'straight'", live=True,
           choices=("hold", "straight")),
-    Param("frame_id", "map", "frame of hitch_poses and markers", live=True),
+    Param("frame_id", "map", "frame of hitch_poses and markers", live=True, text=FRAME_ID),
     Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
     Param("record", True, "write every run to an MCAP bag", live=False),
     Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),
@@ -83,6 +91,8 @@ def value_rule(p: Param, v) -> str:
         return f"of type {kind.__name__}"
     if p.choices and v not in p.choices:
         return f"one of {', '.join(map(repr, p.choices))}"
+    if p.text is not None and not p.text.test(v):
+        return p.text.text
     if kind in (int, float) and not validate.is_finite(v):
         return "a finite number" + (f" in [{p.low:g}, {p.high:g}]" if p.low is not None else "")
     if p.low is not None and not p.low <= v <= p.high:

@@ -501,6 +501,20 @@ def test_a_fidelity_level_the_train_cannot_run_is_refused(tmp_path):
         Run(tmp_path, scene_file=str(tmp_path / "scene.yaml"), fidelity="kinematic")
 
 
+@pytest.mark.parametrize("frame", ["", "/map", "my map", "map\n", "\x00", "x" * 257])
+def test_a_frame_id_tf2_would_refuse_is_refused_with_the_rule(run, frame):
+    reason = run.s.set_parameters({"frame_id": frame})
+    assert reason.startswith("frame_id: ") and "must be a frame name" in reason and "\n" not in reason
+    assert run.s.cfg["frame_id"] == "map"
+
+
+@pytest.mark.parametrize("frame", ["odom", "unit1/odom", "x" * 256])
+def test_a_frame_id_tf2_takes_is_taken(run, frame):
+    assert run.s.set_parameters({"frame_id": frame}) == ""
+    run.ticks(1)
+    assert deserialize_message(run.topic("hitch_poses")[-1], PoseArray).header.frame_id == frame
+
+
 def test_frame_id_changes_live_in_poses_and_markers(run):
     run.ticks(5)
     assert deserialize_message(run.topic("hitch_poses")[-1], PoseArray).header.frame_id == "map"
