@@ -26,9 +26,10 @@ class Parser(argparse.ArgumentParser):
 
 
 def check_main(args: argparse.Namespace) -> int:
+    from .config import resolve_config_path
     from .model.loader import check_files
 
-    return check_files(args.files)
+    return check_files([resolve_config_path(f) for f in args.files])
 
 
 def recover_main(args: argparse.Namespace) -> int:

@@ -106,6 +106,9 @@ def test_session_runs_node_and_player_and_says_where_the_bag_and_report_are(tmp_
     assert max(abs(m.data) for _, m in data["/steering_angle"]) == pytest.approx(peak, rel=0.01)
     times = [t for t, _ in data["/hitch_poses"]]
     assert (times[-1] - times[0]) * 1e-9 >= scene.duration - 1.0
+    # the player streams the command it holds (20 Hz of wall time): the watchdog never calls it stale
+    said = [m.status[0].message for _, m in data["/diagnostics"]]
+    assert len(said) >= 3 and not [line for line in said if "stale" in line], said
     summary = json.loads((tmp_path / "reports" / bag.stem / "summary.json").read_text())
     assert Path(report).name == "summary.md" and Path(report).exists()
     assert summary  # written by mta analyze from this bag

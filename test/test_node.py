@@ -29,6 +29,7 @@ from mta_sim_ros.model.loader import load_scene
 from mta_sim_ros.sim import Simulation
 from mta_sim_ros.timing import TickStats
 
+from bagcheck import assert_never_back
 from dds import REPO, Probe, start_node, start_python, stop, write_params
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
@@ -122,6 +123,7 @@ def test_steered_over_dds_the_node_matches_the_offline_simulation(tmp_path, prob
     finally:
         assert stop(node) == 0, (tmp_path / "node.log").read_text()
     [bag_path] = bags_in(tmp_path / "bags")
+    assert_never_back(bag_path)  # in file order: log times never go back
     bag = read_bag(bag_path)
     assert len(bag["/steering_angle"]) >= 40  # 20 Hz for 3 s
     # the second reader (mcap + mcap_ros2) sees the same topics and counts; one output per tick

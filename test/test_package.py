@@ -290,3 +290,19 @@ def test_installed_mta_script_runs(colcon_install, tmp_path):
                          cwd=tmp_path, env=env, stdin=subprocess.DEVNULL,
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, _output(run)
+
+
+def test_every_relative_link_of_the_docs_resolves_in_the_repository():
+    """The README stands alone: each [text](target) of README.md and docs/**/*.md that is not a
+    URL names a file or folder of this repository (the part before any #anchor)."""
+    import re
+
+    broken = []
+    for doc in [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]:
+        for target in re.findall(r"\]\(([^)\s]+)\)", doc.read_text()):
+            if re.match(r"[a-z]+:", target) or target.startswith("#"):
+                continue
+            path = (doc.parent / target.split("#", 1)[0]).resolve()
+            if not path.exists() or REPO.resolve() not in (path, *path.parents):
+                broken.append(f"{doc.relative_to(REPO)}: {target}")
+    assert not broken, broken

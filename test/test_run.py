@@ -139,3 +139,11 @@ def test_help_lists_the_subcommands():
     done = mta("--help")
     assert done.returncode == 0 and "run" in done.stdout and "check" in done.stdout
     assert mta("run", "--help").returncode == 0
+
+
+@pytest.mark.parametrize("command", [["run", "--bag", "x.mcap", "--scene"], ["check"]])
+def test_a_scene_name_resolves_from_any_folder_as_in_every_command(tmp_path, command):
+    """'scenes/reversing.yaml' names the package's scene from anywhere, as for maneuver, follow,
+    session, bench and the node's scene_file."""
+    done = mta(*command, "scenes/reversing.yaml", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr

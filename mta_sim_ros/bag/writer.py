@@ -17,6 +17,11 @@ it, plus any schema/channel registered since the last chunk was written.  The
 file then has no summary or footer; use
 :func:`mta_sim_ros.bag.reader.recover` to rebuild a complete file.  Data
 handed to the OS survives a process kill, not a power loss (no fsync).
+
+Order: log times never go back, on any channel nor across the file (``mcap doctor
+--strict-message-order``); a message stamped before the latest one written is refused
+(BagError), so every writer of the project (``mta run``, the node's recorder, ``recover``)
+keeps that order or fails loudly.
 """
 
 import math
@@ -154,6 +159,7 @@ class BagWriter:
         self._flush_after_ns = flush_after_ns
         self._chunk_start_ns: int | None = None  # log time of the open chunk's first message
         self._added = 0  # messages handed to mcap
+        self._last_log_ns = 0  # log times never go back, on any channel nor in the file
         #: Messages in chunks handed to the OS: what a SIGKILL now would leave for recover().
         self.messages_in_file = 0
         records = {name: _check_str_map(f"metadata {name!r}", data)
@@ -258,7 +264,8 @@ class BagWriter:
         Args:
             topic: a registered topic.
             data: the serialized message (CDR for ROS 2 topics).
-            log_time_ns: receive/log time in nanoseconds (>= 0).
+            log_time_ns: receive/log time in nanoseconds (>= 0, and >= that of every message
+                written before: what ``mcap doctor --strict-message-order`` asks).
             publish_time_ns: publish time in nanoseconds; defaults to ``log_time_ns``.
             sequence: optional publisher sequence number.
         """
@@ -270,6 +277,10 @@ class BagWriter:
             if not isinstance(value, int) or not 0 <= value < limit:
                 raise BagError(f"{self.path}: {name} for {topic} must be an int in [0, {limit}), "
                                f"got {value!r}")
+        if log_time_ns < self._last_log_ns:
+            raise BagError(f"{self.path}: log time {log_time_ns} ns of a message on {topic} must be >= "
+                           f"{self._last_log_ns} ns, the latest written (log times never go back in a bag)")
+        self._last_log_ns = log_time_ns
         writes = self._stream.writes
         self._io(f"write a message on {topic}", lambda: self._mcap.add_message(
             channel_id=channel.channel_id, log_time=log_time_ns, data=bytes(data),

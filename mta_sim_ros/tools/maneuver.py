@@ -1,9 +1,11 @@
 """``mta maneuver``: a node that plays a scene's steering (and speed) table on sim time, then exits.
 
-It follows /clock: at each simulation instant it publishes the table's value on
-``steering_angle`` (and ``speed_setpoint`` when the scene has a speed table), time counted from
-the first /clock it hears, so it plays the same whether the simulator runs at wall-clock speed or
-faster. ``--maneuver NAME --param k=v`` replaces the scene's steering by a named manoeuvre
+It follows /clock: at each simulation instant whose table value differs from the last one sent
+it publishes it on ``steering_angle`` (and ``speed_setpoint`` when the scene has a speed table),
+time counted from the first /clock it hears, so it plays the same whether the simulator runs at
+wall-clock speed or faster. Between changes it streams the value it holds at --rate Hz (default
+20) of the wall clock, as a joystick or controller does, so the simulator's watchdog (a command
+older than its timeout, wall seconds, is stale) never takes a held value for a lost one. ``--maneuver NAME --param k=v`` replaces the scene's steering by a named manoeuvre
 (``mta_sim_ros.maneuvers``: step, ramp, sine, slalom, lane_change, headland_turn, straight).
 """
 from __future__ import annotations
@@ -14,6 +16,7 @@ import signal
 import sys
 
 import rclpy
+import rclpy.clock
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -25,7 +28,7 @@ from ..config import resolve_config_path
 from ..model.loader import SpecError, load_scene
 from ..ros_msgs import QOS
 from ..sim import speed_setpoint, table_value
-from ..validate import DURATION, number_arg
+from ..validate import DURATION, Range, number_arg
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,10 +38,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--param", action="append", default=[], metavar="K=V", help="manoeuvre parameter (repeatable)")
     p.add_argument("--duration", type=number_arg(DURATION),
                    help="s of sim time to play (default: the scene's duration)")
+    p.add_argument("--rate", type=number_arg(STREAM_RATE), default=DEFAULT_RATE,
+                   help=f"Hz (wall clock) at which the held command is sent again between changes (default {DEFAULT_RATE:g})")
+
+
+#: commands a second the player sends at least (wall clock)
+DEFAULT_RATE = 20.0
+STREAM_RATE = Range.of(0.1, 1000.0, "Hz")
 
 
 class ManeuverPlayer(Node):
-    def __init__(self, scene, duration: float):
+    def __init__(self, scene, duration: float, rate: float = DEFAULT_RATE):
         super().__init__("mta_maneuver")
         self.scene, self.duration = scene, duration
         self.steering = self.create_publisher(Float64, "steering_angle", QOS)
@@ -47,6 +57,19 @@ class ManeuverPlayer(Node):
         self.start: float | None = None
         self.done = False
         self.last = (None, None)
+        self.create_timer(1.0 / rate, self._stream,
+                          clock=rclpy.clock.Clock(clock_type=rclpy.clock.ClockType.STEADY_TIME))
+
+    def _send(self, steer: float, speed: float | None) -> None:
+        self.steering.publish(Float64(data=steer))
+        if self.speed is not None:
+            self.speed.publish(Float64(data=speed))
+        self.last = (steer, speed)
+
+    def _stream(self) -> None:
+        """The held command again (the wall-clock timer), once playing."""
+        if self.last[0] is not None and not self.done:
+            self._send(*self.last)
 
     def _on_clock(self, msg: Clock) -> None:
         now = msg.clock.sec + msg.clock.nanosec * 1e-9
@@ -59,11 +82,8 @@ class ManeuverPlayer(Node):
             return
         steer = table_value(self.scene.steering, t)
         speed = table_value(self.scene.speed, t) if self.scene.speed else None
-        if (steer, speed) != self.last:  # publish changes only: the simulator holds the last value
-            self.steering.publish(Float64(data=steer))
-            if self.speed is not None:
-                self.speed.publish(Float64(data=speed))
-            self.last = (steer, speed)
+        if (steer, speed) != self.last:  # a change at once; the held value streams (_stream)
+            self._send(steer, speed)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -76,7 +96,7 @@ def main(args: argparse.Namespace) -> int:
     except (SpecError, ValueError) as err:
         print(f"mta maneuver: {err}", file=sys.stderr)
         return 2
-    return spin_until_done(lambda: ManeuverPlayer(scene, args.duration or scene.duration), args.ros_args)
+    return spin_until_done(lambda: ManeuverPlayer(scene, args.duration or scene.duration, args.rate), args.ros_args)
 
 
 def scene_with_maneuver(scene, name: str, params: dict[str, float]):

@@ -21,6 +21,7 @@ from .. import __version__
 from ..bag import BagError, BagWriter
 from ..fidelity import LEVELS, choose
 from ..messages import CommandEncoder, OutputEncoder
+from ..config import resolve_config_path
 from ..model.loader import load_scene
 from ..model.spec import INTEGRATOR_METHODS
 from ..sim import run_scene
@@ -144,7 +145,7 @@ def write_atomic(path: Path, text: str) -> None:
 
 def main(args: argparse.Namespace) -> int:
     try:
-        scene = load_scene(args.scene)
+        scene = load_scene(resolve_config_path(args.scene))  # a name as every command takes it
         choice = choose(scene, forced=getattr(args, "fidelity", None))
         options = run_options(args, scene, choice)
         bag_path, report_path = output_paths(args, scene)
@@ -187,12 +188,12 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
             outputs, commands = OutputEncoder(cart_names, args.frame_id), CommandEncoder()  # the node's encoders
 
             def record(out):
+                if out.t > 0:  # the inputs held over the tick that ended here, stamped at its start,
+                    for topic, data in commands.encode(out).items():  # so before its outputs
+                        bag.write_raw(qualified(topic), data, round((out.t - tick) * 1e9))
                 stamp_ns = round(out.t * 1e9)
                 for topic, data in outputs.encode(out).items():
                     bag.write_raw(qualified(topic), data, stamp_ns)
-                if out.t > 0:  # the inputs held over the tick that ended here, stamped at its start
-                    for topic, data in commands.encode(out).items():
-                        bag.write_raw(qualified(topic), data, round((out.t - tick) * 1e9))
                 summary.add(out)
                 progress.update(out.t)
 
