@@ -14,7 +14,9 @@ takes what they hold, at most MAX_TAKE a topic, then runs the ticks due. A flood
 at ~8 kHz those starved the tick. The reader keeps the newest QOS.depth commands of each topic;
 older ones of a flood are overwritten before the tick takes them, and what is taken is recorded.
 A command waits at most one timer period (the tick, at most pacing.MAX_TIMER_PERIOD) to be
-taken, as it would wait for the tick that applies it.
+taken, as it would wait for the tick that applies it. The command subscriptions have no QoS event
+handlers (rmw_fastrtps wakes an executor waiting on them at every message as well); a publisher
+they cannot hear (best effort) is said by the 1 Hz timer, from the graph.
 
 Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock and
 /diagnostics, which are global by convention):
@@ -35,8 +37,10 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
@@ -92,21 +96,21 @@ class SimNode(Node):
         self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish, log=self.get_logger(),
                                   name=self.get_name(), namespace=self.get_namespace(), profile=profile)
         taken = TakenByTheTick()
-        self.commands = {}
-        for topic in COMMAND_TOPICS:
-            sub = self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data),
-                                           QOS, callback_group=taken)
-            for handler in sub.event_handlers:  # its QoS events (an incompatible publisher) are still said
-                handler.callback_group = self.default_callback_group
-                self.default_callback_group.add_entity(handler)
-            self.commands[topic] = sub
+        # No QoS event handlers on them: rmw_fastrtps wakes an executor waiting on a subscription's
+        # events at every message too (a 10 kHz flood kept the executor's thread 70 % busy with
+        # them); the 1 Hz timer asks the graph for publishers they cannot hear instead.
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
+        self.commands = {topic: self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data),
+                                                         QOS, callback_group=taken, event_callbacks=quiet)
+                         for topic in COMMAND_TOPICS}
+        self.unheard: set[tuple] = set()  # (topic, publisher gid) already said
         self.create_service(Trigger, "reset", self._on_reset)
         self.create_service(SetBool, "pause", self._on_pause)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.timer = None
         self._make_timer()
-        self.create_timer(1.0, self.session.publish_diagnostics, clock=self.steady)
+        self.create_timer(1.0, self._each_second, clock=self.steady)
 
     def _publish(self, msgs: dict) -> None:
         for topic, data in msgs.items():
@@ -121,6 +125,24 @@ class SimNode(Node):
     def _on_tick(self) -> None:
         self._take_commands()
         self.session.fire()
+
+    def _each_second(self) -> None:
+        self.session.publish_diagnostics()
+        self._say_unheard_publishers()
+
+    def _say_unheard_publishers(self) -> None:
+        """Warn once about each command publisher this node cannot hear: a best-effort one (the
+        command subscriptions are reliable, QOS; DDS never matches the two)."""
+        for topic, sub in self.commands.items():
+            for info in self.get_publishers_info_by_topic(sub.topic_name):
+                key = (topic, tuple(info.endpoint_gid))
+                if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT and key not in self.unheard:
+                    self.unheard.add(key)
+                    who = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                    self.get_logger().warning(
+                        f"{sub.topic_name}: the publisher of {who} offers incompatible QoS (best effort): this node "
+                        f"subscribes reliable (keep last {QOS.depth}) and receives none of its commands; publish "
+                        f"them reliable")
 
     def _take_commands(self) -> None:
         """Hand the session the commands waiting in each command subscription, oldest first."""

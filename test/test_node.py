@@ -249,8 +249,9 @@ def test_commands_reach_the_session_and_a_burst_does_not_stop_the_node(tmp_path,
 
 
 def test_commands_taken_by_the_tick_still_say_an_incompatible_publisher(tmp_path, probe):
-    """The command subscriptions are out of the executor's reach (node.TakenByTheTick), their QoS
-    events are not: a best-effort publisher, which a reliable subscription cannot hear, is said."""
+    """The command subscriptions are out of the executor's reach (node.TakenByTheTick) and have no
+    QoS event handlers (they would wake the executor at every message): a best-effort publisher,
+    which a reliable subscription cannot hear, is said by the node's 1 Hz look at the graph."""
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     log = tmp_path / "node.log"
