@@ -257,8 +257,10 @@ def main(args: argparse.Namespace) -> int:
         f"Tick figures are the whole run's (warm-up, flood and the {args.after:g} s after), from the bag's closing "
         "record; deadline misses in the flood, the lags and the commands taken are the node's own /diagnostics "
         "(1 Hz); commands recorded are the /steering_angle messages in the bag. The node takes the commands at "
-        "each firing of its tick timer, the newest ones its reader keeps (QoS keep last 10), so under a flood "
-        "it takes at most 10 a tick: the rest are overwritten in the reader before anyone takes them.",
+        "each firing of its tick timer: what its reader holds (QoS keep last 10: the newest ten) and what "
+        "arrives while it takes them, at most node.MAX_TAKE a topic; the rest of a flood is overwritten in the "
+        "reader before anyone takes it. Node CPU: all the node's threads (DDS receiving included) over the "
+        "flood's wall time.",
         "",
         f"Target (issue 11): no deadline miss in the flood, the lag back under {LAG_TARGET:g} s a second after "
         f"it: {'met' if ok else 'NOT met'} in every run above.",
