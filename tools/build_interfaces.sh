@@ -58,9 +58,15 @@ step() {
 }
 
 for pkg in "${packages[@]}"; do
+  src="$root/interfaces/$pkg"
   build="$prefix/.mta_interfaces_build/$pkg"
+  # A build tree made from another checkout (the venv is shared, or the repo moved): start anew,
+  # cmake refuses a tree whose cache names another source dir.
+  if [ -f "$build/CMakeCache.txt" ] && ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=$src" "$build/CMakeCache.txt"; then
+    rm -rf "$build"
+  fi
   mkdir -p "$build"
-  step "$build/configure.log" cmake -S "$root/interfaces/$pkg" -B "$build" \
+  step "$build/configure.log" cmake -S "$src" -B "$build" \
     -DCMAKE_BUILD_TYPE=Release \
     -DCMAKE_INSTALL_PREFIX="$prefix" \
     -DBUILD_TESTING=OFF \
