@@ -11,7 +11,8 @@ What cannot drift here is upstream itself:
   JAZZY_HASHES: what the build installed, what another process announces over DDS, and what
   rosbags (an independent implementation of the hash) computes from the installed definitions;
 * a message of each type sent by another process over real DDS arrives field for field;
-* the project's CDR serializer (bag writer) writes the same bytes as rclpy's serialize_message.
+* the project's CDR serializer (the bag writer) writes the same bytes as rclpy's serialize_message,
+  padding included (zero in both when rclpy's buffer starts zeroed: rclpy leaves it unwritten).
 """
 from __future__ import annotations
 
