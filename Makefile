@@ -19,7 +19,10 @@ export PIP_DISABLE_PIP_VERSION_CHECK := 1
 PYTHON ?= python3.11
 VENV ?= .venv
 VPY := $(VENV)/bin/python
-STAMP := $(VENV)/.mta_sim_ros.stamp
+PIP_STAMP := $(VENV)/.mta_sim_ros.stamp
+# the venv is complete once tf2_msgs and ackermann_msgs are built into it (tools/build_interfaces.sh)
+STAMP := $(VENV)/.mta_interfaces.stamp
+INTERFACE_FILES := $(shell find interfaces -type f) tools/build_interfaces.sh tools/drop_missing_include_dirs.cmake
 
 # colcon workspace dirs (ignored by git).
 COLCON_BASE ?= .
@@ -32,7 +35,7 @@ BAG ?= bags/headland_turn.mcap
 .PHONY: venv run offline node test colcon clean distclean help
 
 help:
-	@echo "make venv     create $(VENV) (Python 3.11) with requirements.txt + pip install -e ."
+	@echo "make venv     create $(VENV) (Python 3.11) with requirements.txt + pip install -e ., build interfaces/ into it"
 	@echo "make run      the main job: node + manoeuvre for $(SCENE), headless; bag in bags/, report in reports/"
 	@echo "make offline  the same scene offline (mta run, no ROS graph) into $(BAG)"
 	@echo "make node     start the simulator node (config/sim.yaml), until Ctrl-C"
@@ -43,11 +46,17 @@ help:
 venv: $(STAMP)
 
 # Recreated/updated when requirements.txt, setup.py or setup.cfg change.
-$(STAMP): requirements.txt setup.py setup.cfg
+$(PIP_STAMP): requirements.txt setup.py setup.cfg
 	@command -v $(PYTHON) >/dev/null || { echo "$(PYTHON) not found (set PYTHON=...)" >&2; exit 1; }
 	@test -x $(VPY) || { echo "creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
 	$(VPY) -m pip install -q -r requirements.txt
 	$(VPY) -m pip install -q -e .
+	@touch $@
+
+# tf2_msgs and ackermann_msgs have no PyPI wheels: built from interfaces/ with rosidl (~10 s),
+# again only when interfaces/ or the build script change, or the venv was updated.
+$(STAMP): $(PIP_STAMP) $(INTERFACE_FILES)
+	bash tools/build_interfaces.sh $(VENV)
 	@touch $@
 
 run: $(STAMP)
