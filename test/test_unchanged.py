@@ -53,7 +53,6 @@ def before(tmp_path_factory):
     code = textwrap.dedent(f"""
         import sys
         from mta_sim_ros import cli
-from mta_sim_ros.topics import FRAME_TOPICS, qualified
         assert cli.__file__.startswith({str(root)!r}), cli.__file__
         for scene in sys.argv[1:]:
             name = scene.rsplit("/", 1)[1][:-5]
