@@ -42,12 +42,13 @@ Names are refused (one line, InputError) when a frame would not be a name tf2 ta
 from __future__ import annotations
 
 import dataclasses
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from .messages.markers import cart_color, cart_widths
 from .params import FRAME_ID
-from .validate import fail, show
+from .validate import Rule, fail, show
 
 #: Height of every cart's box, m (a train file gives none).
 BOX_HEIGHT = 2.0
@@ -55,6 +56,11 @@ BOX_HEIGHT = 2.0
 #: wide as the tractor plus WHEEL_WIDTH.
 WHEEL_DIAMETER = 1.2
 WHEEL_WIDTH = 0.5
+
+
+#: a ROS namespace as a node takes it (``/``, ``/unit1``, ``fleet/unit1``)
+NAMESPACE = Rule("a ROS namespace: names of letters, digits and _ (not starting with a digit) separated by /",
+                 lambda v: re.fullmatch(r"/?([A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*)?/?", v) is not None)
 
 
 def frame_prefix(namespace: str) -> str:

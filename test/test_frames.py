@@ -15,6 +15,8 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -178,6 +180,15 @@ def test_a_cart_name_that_makes_a_frame_twice_or_no_frame_is_refused_in_one_line
         robot_model(dataclasses.replace(train, carts=carts), "unit1/")
     message = str(err.value)
     assert "\n" not in message and f"name: {name!r}" in message.replace('"', "'") and "carts[2]" in message, message
+
+
+@pytest.mark.parametrize("namespace", ["/unit 1", "/1unit", "//a"])
+def test_mta_urdf_refuses_a_namespace_no_node_could_have_in_one_line(namespace):
+    done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "urdf", "--namespace", namespace],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith(f"mta urdf: --namespace: {namespace!r} must be a ROS namespace")
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
 
 
 # -- the encoders, in process ------------------------------------------------------------------
@@ -388,6 +399,10 @@ def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses
     pose_at, joints_at, odom_at = by_stamp(poses), by_stamp(joints), by_stamp(odom)
     model = urdf_of(description[0].data)
     assert model.base_link == "unit1/base_link"
+    # what robot_state_publisher would be given: mta urdf prints the same URDF
+    printed = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "urdf", "--scene", "scenes/headland_turn.yaml",
+                              "--namespace", "/unit1"], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert printed.returncode == 0 and printed.stdout == description[0].data, printed.stderr
     checked = 0
     for msg in tf:
         stamp = (msg.transforms[0].header.stamp.sec, msg.transforms[0].header.stamp.nanosec)
