@@ -38,6 +38,7 @@ from mta_sim_ros.validate import InputError
 from bagcheck import assert_never_back
 from cdr_refs import rosbags_decode
 from test_session import FakeClock, Log
+from trains import scene as make_scene
 
 REPO = Path(__file__).resolve().parents[1]
 TRAIN = REPO / "config" / "trains" / "default.yaml"
@@ -197,44 +198,68 @@ def decoded(msgs: dict[str, bytes]) -> dict:
     return {topic: rosbags_decode(FRAME_TOPICS[topic], data) for topic, data in msgs.items()}
 
 
+def samples_of(scene, ticks_at):
+    sim = Simulation(scene)
+    samples = []
+    while sim.ticks < max(ticks_at):
+        sim.advance(*sim.scheduled_inputs(sim.t))
+        if sim.ticks in ticks_at:
+            samples.append(sim.outputs())
+    return scene, samples
+
+
 @pytest.fixture(scope="module")
 def turning():
     """The default train in the lane change, mid-manoeuvre (hitch angles of both signs over it)."""
-    scene = load_scene(REPO / "config" / "scenes" / "lane_change.yaml")
-    sim = Simulation(scene)
-    samples = []
-    while sim.ticks < 500:
-        sim.advance(*sim.scheduled_inputs(sim.t))
-        if sim.ticks in (1, 300, 360, 420, 499):
-            samples.append(sim.outputs())
+    scene, samples = samples_of(load_scene(REPO / "config" / "scenes" / "lane_change.yaml"), (1, 300, 360, 420, 499))
     assert max(abs(s.hitch_angle).max() for s in samples) > 0.02
     return scene, samples
+
+
+@pytest.fixture(scope="module", params=["single_tractor", "offset_hitch", "long_train"])
+def other_train(request):
+    """A train of 1 cart, one hitched ahead of its axle (a < 0), one of 5 carts: steered left then right."""
+    train = load_train(REPO / "config" / "trains" / f"{request.param}.yaml")
+    return samples_of(make_scene(train, table=((0.0, 2.0, 5.0), (0.0, 0.3, -0.2)), rate=50.0), (1, 150, 300))
 
 
 def pose_list(out) -> list[tuple[float, float, float]]:
     return [(float(x), float(y), float(th)) for (x, y), th in zip(out.front, out.heading)]
 
 
-@pytest.mark.parametrize("frame_id", ["map", "odom"])
-def test_the_encoded_frames_are_the_hitch_poses_and_the_urdf_s_kinematics(turning, frame_id):
-    scene, samples = turning
-    robot = robot_model(scene.train)
+def assert_encoded_frames(scene, samples, frame_id: str, prefix: str = "") -> None:
+    """The FrameEncoder's messages of each sample (decoded by rosbags) give the hitch poses, by
+    composing /tf_static and /tf and by the URDF's kinematics at joint_states."""
+    robot = robot_model(scene.train, prefix)
     enc = FrameEncoder(robot, scene.train.actuator, frame_id)
     static = decoded(enc.latched(12.5))
     assert static["robot_description"].data == robot.urdf
     fixed = static["/tf_static"].transforms
-    assert {(t.header.frame_id, t.child_frame_id) for t in fixed} == (
-        {("base_link", "tractor"), ("air_cart_hitch", "air_cart"), ("seeder_hitch", "seeder")}
-        | ({("map", "odom")} if frame_id == "map" else set()))
-    assert all((t.header.stamp.sec, t.header.stamp.nanosec) == (12, 500_000_000) for t in fixed)
     model = urdf_of(static["robot_description"].data)
     for out in samples:
         msgs = decoded(enc.encode(out))
         frames = tree([*fixed, *msgs["/tf"].transforms], frame_id)
-        assert_frames_are_the_hitch_poses(frames, pose_list(out), scene.train, "")
-        assert_urdf_kinematics_give_the_frames(model, msgs["joint_states"], frames, "base_link")
+        assert_frames_are_the_hitch_poses(frames, pose_list(out), scene.train, prefix)
+        assert_urdf_kinematics_give_the_frames(model, msgs["joint_states"], frames, prefix + "base_link")
         for header in [t.header for t in msgs["/tf"].transforms] + [msgs["joint_states"].header, msgs["odom"].header]:
             assert {"sec": header.stamp.sec, "nanosec": header.stamp.nanosec} == stamp(out.t)
+
+
+@pytest.mark.parametrize("frame_id", ["map", "odom"])
+def test_the_encoded_frames_are_the_hitch_poses_and_the_urdf_s_kinematics(turning, frame_id):
+    scene, samples = turning
+    assert_encoded_frames(scene, samples, frame_id)
+    fixed = decoded(FrameEncoder(robot_model(scene.train), scene.train.actuator, frame_id).latched(12.5))
+    fixed = fixed["/tf_static"].transforms
+    assert {(t.header.frame_id, t.child_frame_id) for t in fixed} == (
+        {("base_link", "tractor"), ("air_cart_hitch", "air_cart"), ("seeder_hitch", "seeder")}
+        | ({("map", "odom")} if frame_id == "map" else set()))
+    assert all((t.header.stamp.sec, t.header.stamp.nanosec) == (12, 500_000_000) for t in fixed)
+
+
+def test_the_frames_of_other_trains_are_their_hitch_poses(other_train):
+    scene, samples = other_train
+    assert_encoded_frames(scene, samples, "map", "fleet/unit7/")
 
 
 def test_joint_states_are_the_hitch_angles_of_the_poses_their_rates_and_the_steering(turning):

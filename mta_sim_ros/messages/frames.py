@@ -106,17 +106,17 @@ class FrameEncoder:
         if len(out.heading) != n:
             raise ValueError(f"FrameEncoder: {n} carts in the robot model, {len(out.heading)} in the outputs")
         sec, nanosec = stamp_parts(out.t)
-        heading = out.heading.tolist()
-        hitch = out.hitch_angle.tolist()
-        th1, psi = heading[0], float(out.steering)
+        hitch = out.hitch_angle
+        th1, psi = float(out.heading[0]), float(out.steering)
         bx, by = out.axle[0].tolist()
         qz, qw = math.sin(th1 / 2.0), math.cos(th1 / 2.0)
         q = self.q_values
         q[0], q[1] = qz, qw
         if self.cart_frames:
             q[2], q[3] = math.sin(psi / 2.0), math.cos(psi / 2.0)
-            for i, phi in enumerate(hitch):  # about -z: the turn by -phi about z
-                q[4 + 2 * i], q[5 + 2 * i] = math.sin(-phi / 2.0), math.cos(phi / 2.0)
+            half = hitch * -0.5  # a hitch turns about -z: by -phi about z
+            np.sin(half, out=q[4::2])
+            np.cos(half, out=q[5::2])
         v = self.joint_values
         v[:n - 1] = hitch
         v[n - 1] = psi
