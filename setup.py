@@ -67,7 +67,7 @@ setup(
     extras_require={
         'jit': ['numba>=0.59'],
         'plot': ['matplotlib>=3.6'],
-        'test': ['pytest>=7', 'hypothesis>=6.100'],
+        'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56'],
     },
     zip_safe=True,
     maintainer='mta_sim_ros maintainers',

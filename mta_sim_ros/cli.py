@@ -32,6 +32,21 @@ def check_main(args: argparse.Namespace) -> int:
     return check_files([resolve_config_path(f) for f in args.files])
 
 
+def urdf_main(args: argparse.Namespace) -> int:
+    """Print the URDF of a scene's train as the node in ``--namespace`` publishes it on
+    robot_description (urdf.py), e.g. for robot_state_publisher's robot_description parameter."""
+    from .config import resolve_config_path
+    from .model.loader import load_scene
+    from .urdf import NAMESPACE, frame_prefix, robot_model
+    from .validate import fail, show
+
+    if not NAMESPACE.test(args.namespace):
+        fail("--namespace", show(args.namespace), NAMESPACE.text)
+    scene = load_scene(resolve_config_path(args.scene))
+    sys.stdout.write(robot_model(scene.train, frame_prefix(args.namespace)).urdf)
+    return 0
+
+
 def recover_main(args: argparse.Namespace) -> int:
     """Exit 2 when the paths are refused (bag.output_target: nothing read or written), 1 when the
     bag cannot be rebuilt, 0 when it is; one line on stderr either way it fails."""
@@ -112,6 +127,12 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="validate train and scene files without running them")
     p.add_argument("files", nargs="+", help="YAML files (config/trains/*.yaml, config/scenes/*.yaml)")
     p.set_defaults(func=check_main)
+
+    p = sub.add_parser("urdf", help="print the URDF of a scene's train, as the node publishes it on robot_description")
+    p.add_argument("--scene", default="scenes/headland_turn.yaml",
+                   help="scene YAML whose train it is (default: the node's, scenes/headland_turn.yaml)")
+    p.add_argument("--namespace", default="/", help="the node's namespace: its frames' prefix (/unit1 -> unit1/)")
+    p.set_defaults(func=urdf_main)
 
     add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis", selected)
 

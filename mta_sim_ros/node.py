@@ -18,13 +18,16 @@ taken, as it would wait for the tick that applies it. The command subscriptions 
 handlers (rmw_fastrtps wakes an executor waiting on them at every message as well); a publisher
 they cannot hear (best effort) is said by the 1 Hz timer, from the graph.
 
-Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock and
-/diagnostics, which are global by convention):
+Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock,
+/diagnostics, /tf and /tf_static, which are global by convention; the frames take the prefix
+``unit1/``, urdf.frame_prefix):
     subscribes  steering_angle, speed_setpoint            std_msgs/Float64 (rad, m/s)
     publishes   hitch_poses, cart_velocities, traction_power, applied_steering (see topics.py),
-                markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz)
+                markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz),
+                /tf, /tf_static, joint_states, odom, robot_description (topics.FRAME_TOPICS)
     services    reset (std_srvs/Trigger), pause (std_srvs/SetBool)
-QoS: one profile for everything, ``ros_msgs.QOS``: reliable, volatile, keep last 10.
+QoS: ``ros_msgs.QOS`` (reliable, volatile, keep last 10) for everything but the latched topics
+/tf_static and robot_description, ``ros_msgs.LATCHED_QOS`` (transient-local, keep last 1).
 """
 from __future__ import annotations
 
@@ -50,7 +53,7 @@ from .ros_msgs import QOS
 from .params import PARAMS, ConfigError, Param, check_ros_args
 from .session import RunSession
 from .timing import reserve_cpu
-from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC
+from .topics import BAG_TOPICS, COMMAND_TOPICS, LATCHED_TOPICS, WATCHDOG_TOPIC
 
 #: most commands of one topic taken at one firing of the tick timer (the reader holds QOS.depth)
 MAX_TAKE = 2 * QOS.depth
@@ -91,7 +94,8 @@ class SimNode(Node):
             except Exception as err:  # rclpy raises several types for a bad override
                 raise ConfigError(f"parameter {p.name}: {err}") from None
         cfg = {p.name: self.get_parameter(p.name).value for p in PARAMS}
-        self.pubs = {topic: self.create_publisher(ros_msgs.message_class(type_name), topic, QOS)
+        self.pubs = {topic: self.create_publisher(ros_msgs.message_class(type_name), topic,
+                                                  ros_msgs.LATCHED_QOS if topic in LATCHED_TOPICS else QOS)
                      for topic, type_name in BAG_TOPICS.items() if topic not in (*COMMAND_TOPICS, WATCHDOG_TOPIC)}
         self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish, log=self.get_logger(),
                                   name=self.get_name(), namespace=self.get_namespace(), profile=profile)

@@ -57,6 +57,10 @@ PARAMS = (
     Param("watchdog_action", "hold", "on a stale command: 'hold' the last one or steer 'straight'", live=True,
           choices=("hold", "straight")),
     Param("frame_id", "map", "frame of hitch_poses and markers", live=True, text=FRAME_ID),
+    Param("publish_cart_frames", True, "publish the frames of the robot model's joints (each cart through its "
+          "hitch, the steered wheels, the fixed joints) on /tf and /tf_static; false when robot_state_publisher "
+          "publishes them from robot_description and joint_states (odom -> base_link and frame_id -> odom "
+          "stay the node's)", live=False),
     Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
     Param("record", True, "write every run to an MCAP bag", live=False),
     Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),

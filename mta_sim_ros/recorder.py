@@ -32,7 +32,7 @@ import time
 import uuid
 from pathlib import Path
 
-from .bag import BagError, BagWriter
+from .bag import DEFAULT_QOS_YAML, BagError, BagWriter
 
 #: How often the background thread looks for messages to write while it finds none, s.
 POLL_SECONDS = 0.02
@@ -49,14 +49,16 @@ BACKLOG_SECONDS = 0.25
 
 class RunRecorder:
     def __init__(self, bag_dir: str, topics: dict[str, str], metadata: dict[str, str], background: bool = False,
-                 rename: dict[str, str] | None = None):
+                 rename: dict[str, str] | None = None, qos: dict[str, str] | None = None):
         """``topics``: fully qualified name -> type (pkg/msg/Name); ``metadata``: the run's
         description (files, parameters, version), stored as the metadata record mta_sim_ros;
         ``background``: write on a thread of its own (see the module docstring); ``rename``: names
         the caller writes under -> their topic in the bag (the node's relative names -> names
-        qualified in its namespace), resolved on the writing thread."""
+        qualified in its namespace), resolved on the writing thread; ``qos``: fully qualified
+        name -> offered_qos_profiles of a topic not published with the default QoS (a latched one)."""
         self.bag_dir = Path(bag_dir)
         self.topics = dict(topics)
+        self.qos = dict(qos or {})
         self.rename = dict(rename or {})
         self.metadata = dict(metadata)
         self.writer: BagWriter | None = None
@@ -82,7 +84,7 @@ class RunRecorder:
             self.writer = BagWriter(str(self.path), metadata={"mta_sim_ros": self.metadata},
                                     flush_after_ns=round(FLUSH_SECONDS * 1e9))
             for topic, type_name in self.topics.items():
-                self.writer.add_topic(topic, type_name)
+                self.writer.add_topic(topic, type_name, self.qos.get(topic, DEFAULT_QOS_YAML))
         except (BagError, OSError) as err:
             self._fail(err)
             return None

@@ -17,6 +17,11 @@ from .bag.schemas import split_type_name
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.VOLATILE)
 
+#: The QoS of the latched topics (topics.LATCHED_TOPICS: /tf_static, robot_description): reliable,
+#: transient-local, keep last 1, what tf2's static listener and robot_state_publisher's readers ask.
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
 
 def message_class(type_name: str) -> type:
     """The rclpy message class of a type name of the topic table, e.g.

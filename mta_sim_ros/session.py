@@ -33,8 +33,9 @@ from .recorder import RunRecorder
 from .runlog import run_metadata, tick_figures, tick_line
 from .sim import Simulation
 from .timing import TickStats
-from .validate import InputError
-from .topics import BAG_TOPICS, COMMAND_TOPICS, WATCHDOG_TOPIC, qualified
+from .validate import InputError, show
+from .topics import BAG_TOPICS, COMMAND_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, WATCHDOG_TOPIC, qualified
+from .urdf import frame_prefix, robot_model
 from .watchdog import SteeringWatchdog
 
 #: Seconds between two log lines about bad commands on one topic (/diagnostics says every one).
@@ -61,12 +62,23 @@ class Encoders(Protocol):
 
     def markers(self, train, frame_id: str) -> MarkersEncoder: ...
 
+    def frames(self, robot, actuator, frame_id: str, cart_frames: bool) -> FramesEncoder:
+        """The frames of ``robot`` (urdf.Robot); ``cart_frames``: its joints' frames too."""
+
     def diagnostics(self, t: float, name: str, level: int, message: str,
                     values: Mapping[str, object]) -> bytes:
         """A diagnostic_msgs/DiagnosticArray stamped t with one status (diagnostics.Status)."""
 
     def float64(self, x: float) -> bytes:
         """A std_msgs/Float64 (commands and watchdog take-overs, as recorded)."""
+
+
+class FramesEncoder(Protocol):
+    def encode(self, out) -> dict[str, bytes]:
+        """topic -> CDR bytes of the per-tick frames (/tf, joint_states, odom) of one sim.Outputs."""
+
+    def latched(self, t: float) -> dict[str, bytes]:
+        """topic -> CDR bytes of the latched topics (/tf_static stamped t, robot_description)."""
 
 
 class TickProfile(Protocol):
@@ -113,6 +125,14 @@ class RunSession:
         except ValueError as err:  # a level this train cannot run (kinematic without a commanded speed)
             raise ConfigError(f"parameter fidelity: {err}") from None
         self.cart_names = [c.name for c in self.scene.train.carts]
+        try:  # the robot model: frames and joints named after the carts, prefixed by the namespace
+            self.robot = robot_model(self.scene.train, frame_prefix(namespace))
+        except InputError as err:
+            raise ConfigError(f"parameter scene_file: {err}") from None
+        rule = self.robot.frame_id_rule(self.cfg["frame_id"])
+        if rule:
+            raise ConfigError(f"parameter frame_id: {show(self.cfg['frame_id'])} must be {rule}")
+        self.latched: dict[str, bytes] = {}  # what the latched topics last published (urdf, /tf_static)
         ranges = command_ranges(self.scene)
         self.steering = CommandInput(self.scene.initial.steering, *ranges["steering_angle"], "steering_angle", clock)
         self.speed = CommandInput(self.sim.v_set, *ranges["speed_setpoint"], "speed_setpoint", clock)
@@ -134,8 +154,10 @@ class RunSession:
         if self.cfg["record"]:
             in_bag = {t: qualified(t, namespace) for t in BAG_TOPICS}  # e.g. hitch_poses -> /unit1/hitch_poses
             self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in BAG_TOPICS.items()},
-                                        self.run_metadata(), background=background, rename=in_bag)
+                                        self.run_metadata(), background=background, rename=in_bag,
+                                        qos={in_bag[t]: LATCHED_QOS_YAML for t in LATCHED_TOPICS})
             self._start_bag()
+        self._publish_latched(LATCHED_TOPICS)
         self.pacing = Pacing(self.sim.tick, self.cfg["real_time_factor"], clock)  # from now: the timer's start
         self.log.info(
             f"scene '{self.scene.name}', {len(self.cart_names)} carts, {self.sim.method} step {self.sim.step:g} s, "
@@ -158,6 +180,17 @@ class RunSession:
         """The tick's encoders for the current frame_id (at start and when it changes)."""
         self.encoder = self.enc.outputs(self.cart_names, self.cfg["frame_id"])
         self.markers = self.enc.markers(self.scene.train, self.cfg["frame_id"])
+        self.frames = self.enc.frames(self.robot, self.scene.train.actuator, self.cfg["frame_id"],
+                                      self.cfg["publish_cart_frames"])
+
+    def _publish_latched(self, topics: Sequence[str]) -> None:
+        """Publish and record these latched topics (topics.LATCHED_TOPICS) as they are now: at
+        start, and /tf_static again when frame_id changes (the URDF never changes: a reset keeps
+        the train). Each new bag records them too, from its start (_start_bag)."""
+        msgs = {t: b for t, b in self.frames.latched(self.now).items() if t in topics}
+        self.latched.update(msgs)
+        self.publish(msgs)
+        self._record(msgs)
 
     def _new_run(self) -> None:
         """Fresh tick statistics and wall time for a run (start, reset)."""
@@ -225,6 +258,7 @@ class RunSession:
         if profile is not None:
             profile.mark("outputs")
         msgs = self.encoder.encode(out)  # CDR bytes: the same bytes go to DDS and to the bag
+        msgs.update(self.frames.encode(out))  # /tf, joint_states, odom
         if profile is not None:
             profile.mark("encode")
         self.ticks_since_markers += 1
@@ -310,6 +344,8 @@ class RunSession:
                 return (f"{name} cannot change while running: it is fixed at start (restart the node with "
                         f"the new value)")
             problem = check_value(spec, value)
+            if not problem and name == "frame_id" and self.robot.frame_id_rule(value):
+                problem = f"{show(value)} must be {self.robot.frame_id_rule(value)}"
             if problem:
                 return f"{name}: {problem}"
             if name == "fidelity":
@@ -325,6 +361,7 @@ class RunSession:
         self.watchdog.timeout, self.watchdog.action = self.cfg["watchdog_timeout"], self.cfg["watchdog_action"]
         if "frame_id" in changes:
             self._make_encoders()  # the frame is part of the templates
+            self._publish_latched(("/tf_static",))  # frame_id -> odom
         if "fidelity" in changes:
             self.log.info(f"fidelity {self.cfg['fidelity'] or 'of the scene'}: applies at the next reset")
         return ""
@@ -355,6 +392,7 @@ class RunSession:
             self.log.error(self.recorder.error)
         else:
             self.log.info(f"recording {path}")
+            self._record(dict(self.latched))  # what a subscriber holds of the latched topics, from the bag's start
         return path
 
     def diagnostics(self) -> Status:

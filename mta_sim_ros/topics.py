@@ -15,10 +15,25 @@ bag recorded in the root namespace, as rosbag2 does.
 | applied_steering   | std_msgs/msg/Float64        | psi_1, the angle the actuator has reached (rad)  |
 | speed_setpoint     | std_msgs/msg/Float64        | speed set-point held over the tick (m/s)         |
 | /clock             | rosgraph_msgs/msg/Clock     | simulation time                                  |
+
+The train's frames and model for ROS tools (REP-105; ``messages/frames.py``, ``urdf.py``), in the
+node's and the offline run's bags too; <p> is the frame prefix of the node's namespace (''
+in /, ``unit1/`` in /unit1):
+
+| topic              | type                        | content                                          |
+|--------------------|-----------------------------|--------------------------------------------------|
+| /tf                | tf2_msgs/msg/TFMessage      | <p>odom -> <p>base_link (B_1, th_1) and the      |
+|                    |                             | steering and hitch joints' frames                |
+| /tf_static         | tf2_msgs/msg/TFMessage      | frame_id -> <p>odom (identity), fixed joints;    |
+|                    |                             | latched                                          |
+| joint_states       | sensor_msgs/msg/JointState  | hitch angles th_{k-1} - th_k, then psi_1, and    |
+|                    |                             | their rates (rad, rad/s)                         |
+| odom               | nav_msgs/msg/Odometry       | B_1 and th_1 in <p>odom, twist in <p>base_link   |
+| robot_description  | std_msgs/msg/String         | the URDF; latched                                |
 """
 from __future__ import annotations
 
-from .bag import clock, float64, joint_state, pose_array
+from .bag import clock, float64, joint_state, pose_array, qos_profiles_yaml
 
 TOPICS = {
     "hitch_poses": "geometry_msgs/msg/PoseArray",
@@ -43,8 +58,26 @@ WATCHDOG_TYPE = "std_msgs/msg/Float64"
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
+# The train's frames and robot model for ROS tools (the table above): /tf and /tf_static are global by
+# convention (tf2 listens there), the others relative (robot_state_publisher reads robot_description
+# and joint_states in its own namespace).
+FRAME_TOPICS = {
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+    "joint_states": "sensor_msgs/msg/JointState",
+    "odom": "nav_msgs/msg/Odometry",
+    "robot_description": "std_msgs/msg/String",
+}
+
+#: Topics published once (at start, and again when they change) with QoS transient-local, depth 1,
+#: so a late subscriber gets them; each bag holds them from its start.
+LATCHED_TOPICS = ("/tf_static", "robot_description")
+#: Their offered_qos_profiles in a bag (mta replay republishes them latched).
+LATCHED_QOS_YAML = qos_profiles_yaml(durability="transient_local", depth=1)
+
 #: Every topic of a node's bag (relative names as the node uses them) -> type.
-BAG_TOPICS = {**TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE, WATCHDOG_TOPIC: WATCHDOG_TYPE}
+BAG_TOPICS = {**TOPICS, **FRAME_TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE,
+              WATCHDOG_TOPIC: WATCHDOG_TYPE}
 
 
 def qualified(topic: str, namespace: str = "/") -> str:

@@ -244,6 +244,17 @@ def test_csv_round_trips_the_bag_exactly(reports, bags):
                     assert float(values[f"{name}_resistance_N"]) == f
             elif topic == "/clock":
                 assert (int(values["clock_sec"]), int(values["clock_nanosec"])) == (msg.clock.sec, msg.clock.nanosec)
+            elif topic in ("/tf", "/tf_static"):  # the train's frames (test_frames.py): fields flattened
+                for i, tf in enumerate(msg.transforms):
+                    assert values[f"transforms.{i}.child_frame_id"] == tf.child_frame_id
+                    assert float(values[f"transforms.{i}.transform.translation.x"]) == tf.transform.translation.x
+                    assert float(values[f"transforms.{i}.transform.rotation.w"]) == tf.transform.rotation.w
+            elif topic == "/joint_states":
+                assert [float(values[f"position.{i}"]) for i in range(len(msg.position))] == list(msg.position)
+            elif topic == "/odom":
+                assert float(values["twist.twist.angular.z"]) == msg.twist.twist.angular.z
+            elif topic == "/robot_description":
+                assert values["data"] == msg.data  # the URDF, its line breaks kept
             else:
                 (value,) = values.values()
                 assert float(value) == msg.data

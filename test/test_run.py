@@ -52,7 +52,9 @@ def test_bag_is_ros2_mcap_that_rosbags_and_mcap_both_decode(lane_change_bag):
     ticks = 10.0 * 20.0
     expected_counts = {"/hitch_poses": ticks + 1, "/cart_velocities": ticks + 1, "/traction_power": ticks + 1,
                        "/applied_steering": ticks + 1, "/clock": ticks + 1,
-                       "/steering_angle": ticks, "/speed_setpoint": ticks}
+                       "/steering_angle": ticks, "/speed_setpoint": ticks,
+                       "/tf": ticks + 1, "/joint_states": ticks + 1, "/odom": ticks + 1,  # the frames (test_frames.py)
+                       "/tf_static": 1, "/robot_description": 1}  # latched: once, at the start
     with open(bag, "rb") as f:
         reader = make_reader(f)
         header = reader.get_header()

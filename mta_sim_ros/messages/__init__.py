@@ -3,22 +3,27 @@
 * :mod:`.outputs`: :class:`OutputEncoder` (the five output topics) and :class:`CommandEncoder`
   (the two commands), from an Outputs sample, per tick;
 * :mod:`.markers`: :class:`TrainMarkers`, the drawing of the train (visualization_msgs/MarkerArray);
-* :mod:`.diagnostics`: :func:`encode_diagnostics`, the DiagnosticArray of /diagnostics.
+* :mod:`.diagnostics`: :func:`encode_diagnostics`, the DiagnosticArray of /diagnostics;
+* :mod:`.frames`: :class:`FrameEncoder`, the train's frames and model for ROS tools (/tf,
+  /tf_static, joint_states, odom, robot_description), per tick and latched.
 
 All of it goes through one serializer, :mod:`mta_sim_ros.bag.cdr`; only numpy and the standard
 library besides, so ``mta run`` works without a ROS install and writes the node's bytes.
 """
 from .diagnostics import DIAGNOSTICS_TYPE, HARDWARE_ID, diagnostic_array, encode_diagnostics, format_value
-from .markers import MARKERS_TYPE, TrainMarkers, cart_widths, train_markers
+from .frames import FrameEncoder
+from .markers import MARKERS_TYPE, TrainMarkers, cart_color, cart_widths, train_markers
 from .outputs import CommandEncoder, OutputEncoder, float64_template
 
 
 class Encoders:
-    """Every message a node run sends, as ``session.RunSession`` asks for them: the output and
-    marker encoders (built at start and when frame_id changes), the diagnostics and Float64."""
+    """Every message a node run sends, as ``session.RunSession`` asks for them: the output,
+    marker and frame encoders (built at start and when frame_id changes), the diagnostics and
+    Float64."""
 
     outputs = staticmethod(OutputEncoder)
     markers = staticmethod(TrainMarkers)
+    frames = staticmethod(FrameEncoder)
     diagnostics = staticmethod(encode_diagnostics)
 
     def __init__(self):
@@ -33,8 +38,10 @@ __all__ = [
     "MARKERS_TYPE",
     "CommandEncoder",
     "Encoders",
+    "FrameEncoder",
     "OutputEncoder",
     "TrainMarkers",
+    "cart_color",
     "cart_widths",
     "diagnostic_array",
     "encode_diagnostics",

@@ -99,7 +99,8 @@ def coordinates(out, train, widths: list[float]) -> list[float]:
     return xy
 
 
-def _color(k: int) -> dict:
+def cart_color(k: int) -> dict:
+    """The colour of cart k (0 = the tractor), as std_msgs/ColorRGBA fields: the markers' and the URDF's."""
     r, g, b = _PALETTE[k % len(_PALETTE)]
     return {"r": r, "g": g, "b": b, "a": 1.0}
 
@@ -120,7 +121,7 @@ def marker_array(train, frame_id: str, time: dict, xy: list) -> dict:
 
     markers = []
     for k, cart in enumerate(train.carts):
-        color = _color(k)
+        color = cart_color(k)
         markers += [
             marker(NS_OUTLINE, k, LINE_STRIP, {"x": LINE_WIDTH}, color, points=points(5)),
             marker(NS_AXLE, k, LINE_LIST, {"x": LINE_WIDTH}, color, points=points(2)),
@@ -129,7 +130,7 @@ def marker_array(train, frame_id: str, time: dict, xy: list) -> dict:
         ]
     n = len(train.carts)
     markers.append(marker(NS_HITCHES, 0, SPHERE_LIST, {"x": HITCH_DIAMETER, "y": HITCH_DIAMETER, "z": HITCH_DIAMETER},
-                          _color(0), points=points(n), colors=[_color(k) for k in range(n)]))
+                          cart_color(0), points=points(n), colors=[cart_color(k) for k in range(n)]))
     return {"markers": markers}
 
 

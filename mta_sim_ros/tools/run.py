@@ -1,6 +1,7 @@
 """``mta run``: simulate a scene offline as fast as possible and log it to MCAP.
 
-The bag holds the topics the node publishes (``topics.py``) with log_time = simulation time,
+The bag holds the topics the node publishes (``topics.py``, the frames of the train included, in
+the root namespace: no frame prefix) with log_time = simulation time,
 and a metadata record ``mta_sim_ros`` with the scene and train files as read and the run's
 options, so the run can be repeated from the bag alone. A run stopped by a validity guard
 (jackknife, non-finite state) keeps everything up to that point, closes the bag properly, says
@@ -18,15 +19,16 @@ import time
 from pathlib import Path
 
 from .. import __version__
-from ..bag import BagError, BagWriter
+from ..bag import DEFAULT_QOS_YAML, BagError, BagWriter
 from ..fidelity import LEVELS, choose
-from ..messages import CommandEncoder, OutputEncoder
+from ..messages import CommandEncoder, FrameEncoder, OutputEncoder
 from ..config import resolve_config_path
 from ..model.loader import load_scene
 from ..model.spec import INTEGRATOR_METHODS
 from ..sim import run_scene
 from ..summary import RunSummary
-from ..topics import TOPICS, qualified
+from ..topics import FRAME_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, TOPICS, qualified
+from ..urdf import robot_model
 from ..validate import (EXIT_INPUT, MAX_STEPS_PER_TICK, POSITIVE, PUBLISH_RATE, fail, number_arg, output_file,
                         show, step_count, step_rule, tick_count)
 
@@ -148,13 +150,16 @@ def main(args: argparse.Namespace) -> int:
         scene = load_scene(resolve_config_path(args.scene))  # a name as every command takes it
         choice = choose(scene, forced=getattr(args, "fidelity", None))
         options = run_options(args, scene, choice)
+        robot = robot_model(scene.train)  # the root namespace's frames: no prefix
+        if robot.frame_id_rule(args.frame_id):
+            fail("--frame-id", show(args.frame_id), robot.frame_id_rule(args.frame_id))
         bag_path, report_path = output_paths(args, scene)
     except ValueError as err:  # SpecError, InputError, a fidelity level the scene cannot run
         print(f"mta run: {err}", file=sys.stderr)
         return EXIT_INPUT
     tmp_bag = partial(bag_path)
     try:
-        result = simulate(args, scene, choice, options, tmp_bag)
+        result = simulate(args, scene, choice, options, tmp_bag, robot)
         if isinstance(result, int):
             return result
         sim, stopped, summary, wall = result
@@ -173,9 +178,11 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: Path):
+def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: Path, robot):
     """Run the scene into the bag at ``bag_path``: (sim, what stopped it or None, summary, wall
-    seconds), or an exit code after saying what went wrong in one line."""
+    seconds), or an exit code after saying what went wrong in one line. ``robot``: the train's
+    robot model (urdf.Robot), whose frames the bag holds as the node's does (/tf, /tf_static,
+    joint_states, odom, robot_description; the latched ones at t = 0)."""
     cart_names = [c.name for c in scene.train.carts]
     tick = 1.0 / options["rate"]
     summary = RunSummary(tuple(cart_names))
@@ -185,7 +192,13 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
         with BagWriter(str(bag_path), metadata={"mta_sim_ros": run_metadata(scene, options)}) as bag:
             for topic, type_name in TOPICS.items():
                 bag.add_topic(qualified(topic), type_name)
+            for topic, type_name in FRAME_TOPICS.items():
+                bag.add_topic(qualified(topic), type_name, LATCHED_QOS_YAML if topic in LATCHED_TOPICS
+                              else DEFAULT_QOS_YAML)
             outputs, commands = OutputEncoder(cart_names, args.frame_id), CommandEncoder()  # the node's encoders
+            frames = FrameEncoder(robot, scene.train.actuator, args.frame_id)
+            for topic, data in frames.latched(0.0).items():
+                bag.write_raw(qualified(topic), data, 0)
 
             def record(out):
                 if out.t > 0:  # the inputs held over the tick that ended here, stamped at its start,
@@ -193,6 +206,8 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
                         bag.write_raw(qualified(topic), data, round((out.t - tick) * 1e9))
                 stamp_ns = round(out.t * 1e9)
                 for topic, data in outputs.encode(out).items():
+                    bag.write_raw(qualified(topic), data, stamp_ns)
+                for topic, data in frames.encode(out).items():
                     bag.write_raw(qualified(topic), data, stamp_ns)
                 summary.add(out)
                 progress.update(out.t)
