@@ -33,6 +33,11 @@ TOPICS = {
 # The inputs of the simulator (the node subscribes to these; the others it publishes).
 COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
 
+# The node's commands in the conventions controllers speak (commands.py: one rule for all):
+# topic -> type. The node subscribes ackermann_cmd only where ackermann_msgs is installed.
+MESSAGE_COMMANDS = {"cmd_vel": "geometry_msgs/msg/Twist",
+                    "ackermann_cmd": "ackermann_msgs/msg/AckermannDriveStamped"}
+
 # Bag only (the node records it, never publishes it): the steering command the node holds from
 # this tick on because its command watchdog took over (0.0 when a stale command is replaced by
 # 'straight') or gave back (the last received command), so a re-simulation holds what the node held.
@@ -44,7 +49,8 @@ MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
 #: Every topic of a node's bag (relative names as the node uses them) -> type.
-BAG_TOPICS = {**TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE, WATCHDOG_TOPIC: WATCHDOG_TYPE}
+BAG_TOPICS = {**TOPICS, **MESSAGE_COMMANDS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE,
+              WATCHDOG_TOPIC: WATCHDOG_TYPE}
 
 
 def qualified(topic: str, namespace: str = "/") -> str:
