@@ -19,7 +19,8 @@ for cmd_vel and ackermann_cmd, as CDR bytes) are recorded as received, then go t
 Lockstep (parameter ``lockstep``, fixed at start), for a controller that answers each output with
 a command, as Gazebo's lockstep or CARLA's synchronous mode:
 
-1. the first firing runs tick 1 (with the scene's initial commands) and publishes its outputs;
+1. the first firing runs tick 1 (with the commands held then: the scene's initial ones unless a
+   command came before) and publishes its outputs;
 2. then the session waits: no tick runs until a command arrives on any command topic
    (steering_angle, speed_setpoint, cmd_vel, ackermann_cmd; refused or not: it is an answer);
 3. the next firing after an answer runs exactly one tick, holding the latest commands (two
