@@ -133,7 +133,8 @@ def twist_setting(v: float, omega: float, wheelbase: float, max_angle: float) ->
     v < 0, a left yaw rate is a right steering angle, and |psi_cmd| < 90 deg), clamped to
     +-max_angle; V = v / cos(psi_cmd), so that B_1 runs at v once the steering has settled.
     v = 0: no steering gives a yaw rate at standstill (the wheels do not slip sideways), so the
-    message sets the speed (0) and leaves the steering command as it is."""
+    message sets the speed (0) and leaves the steering command as it is (the session holds it
+    afresh: a controller talking at standstill is not a lost one for the watchdog)."""
     refused = _refused("cmd_vel", {"linear.x": v, "angular.z": omega})
     if refused:
         return refused

@@ -390,6 +390,8 @@ class RunSession:
         if setting.steering is not None:
             self.steering.set(setting.steering)
             self.rate_limit = setting.rate
+        elif not setting.refused:  # cmd_vel at v = 0 holds the steering as it is: a fresh command for the watchdog
+            self.steering.set(self.steering.value)
         if setting.speed is not None:
             self.speed.set(setting.speed)
         if setting.problem:

@@ -148,6 +148,20 @@ def test_the_latest_command_of_any_source_sets_what_it_sets(tmp_path):
     assert math.isnan(recorded[2][0]) and recorded[2][1] == 0.5  # the refused one too, as received
 
 
+def test_cmd_vel_at_standstill_keeps_the_watchdog_off_the_steering_it_holds(tmp_path):
+    """A cmd_vel at v = 0 leaves the steering as it is, and says so afresh: the watchdog (a
+    steering command older than its timeout) does not take a talking controller for a lost one."""
+    r = Run(tmp_path, watchdog_timeout=0.5, watchdog_action="straight")
+    r.s.command("steering_angle", 0.2)
+    for _ in range(10):
+        r.ticks(10)  # 0.2 s
+        r.s.command_message("cmd_vel", twist(0.0, 0.1))
+    assert r.s.sim.command == 0.2 and not r.s.watchdog.straight
+    r.ticks(30)  # 0.6 s of silence
+    assert r.s.sim.command == 0.0 and r.s.watchdog.straight
+    r.s.close()
+
+
 def test_cmd_vel_steers_exactly_as_the_equivalent_float64_commands(tmp_path):
     """The same numbers held, the same outputs, byte for byte."""
     a, b = Run(tmp_path / "a"), Run(tmp_path / "b")
