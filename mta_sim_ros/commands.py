@@ -3,9 +3,29 @@
 The node takes every steering and speed command through a :class:`CommandInput`; ``mta replay
 --resimulate`` applies the same rule (:func:`hold`) to a node bag's recorded commands, so the
 re-simulation holds exactly what the node held.
+
+Four command sources, one rule (:class:`Setting`: what one received message sets):
+
+* ``steering_angle`` (Float64): the steering command psi_cmd, rad; the actuator's own rate limit;
+* ``speed_setpoint`` (Float64): the speed set-point, the model's V (the speed of A_1, the front
+  axle: what the governor and the prescribed-speed law regulate), m/s;
+* ``cmd_vel`` (Twist, :func:`twist_setting`): linear.x = v, the speed of the tractor's rear axle
+  B_1 (base_link), angular.z = omega, the yaw rate; the bicycle relation of the tractor
+  (docs/model.md: th'_1 = V sin psi_1 / l_1, s'_B1 = V cos psi_1, so omega = v tan psi_1 / l_1)
+  gives psi_cmd = atan(l_1 omega / v) and V = v / cos psi_cmd (psi_cmd after clamping);
+* ``ackermann_cmd`` (AckermannDriveStamped, :func:`ackermann_setting`): steering_angle = psi_cmd,
+  speed = v of B_1 as for cmd_vel (V = v / cos psi_cmd), steering_angle_velocity = the rate
+  limit of the steering actuator while this command holds (0 = the actuator's own).
+
+The latest accepted message of any source sets what it sets, and only that: a steering command
+(steering_angle, cmd_vel with v != 0, ackermann_cmd) sets psi_cmd together with its rate limit
+(the actuator's own for the first two), a speed command (speed_setpoint, cmd_vel, ackermann_cmd)
+sets V. A refused message (a non-finite field it uses) sets nothing; a value out of range is
+clamped (psi_cmd to +-max_angle, V to +-SPEED_LIMIT, the rate to (0, max_rate]).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Callable
@@ -57,10 +77,111 @@ class CommandInput:
         if problem:
             self.clamped += 1
             self.last_problem = f"{self.name}: {x:.4g} {problem}"
+        self.set(value)
+        return value
+
+    def set(self, value: float) -> None:
+        """Hold ``value`` (already validated) from now: a message of another source set it."""
         self.value = value
         self.received = self.clock()
-        return value
 
     def age(self) -> float:
         """Seconds since the last accepted command (since construction before the first)."""
         return self.clock() - self.received
+
+
+@dataclasses.dataclass
+class Setting:
+    """What one received command sets (None: leaves it as it is): the steering command psi_cmd
+    (rad) with the actuator rate limit that goes with it (rad/s; None = the actuator's own), the
+    speed set-point V (m/s); ``problem`` says what was wrong ('' if nothing), ``refused`` that
+    the message sets nothing."""
+
+    steering: float | None = None
+    rate: float | None = None
+    speed: float | None = None
+    problem: str = ""
+    refused: bool = False
+
+
+def _refused(topic: str, fields: dict[str, float]) -> Setting | None:
+    bad = [f"{k} = {v}" for k, v in fields.items() if not math.isfinite(v)]
+    if bad:
+        return Setting(problem=f"{topic}: {', '.join(bad)} is not finite; refused, kept the last command",
+                       refused=True)
+    return None
+
+
+def _steer_and_speed(psi: float, v: float, max_angle: float, problems: list[str]) -> Setting:
+    """psi_cmd clamped to +-max_angle, and V = v / cos(psi_cmd) (rear-axle speed v, the tractor
+    on the bicycle relation) clamped to +-SPEED_LIMIT."""
+    steering, why = hold(psi, -max_angle, max_angle)
+    if why:
+        problems.append(f"steering {psi:.4g} rad {why}")
+    V = v / math.cos(steering)
+    speed, why = hold(V, -SPEED_LIMIT, SPEED_LIMIT)
+    if why:
+        problems.append(f"speed {V:.4g} m/s {why}")
+    return Setting(steering=steering, speed=speed)
+
+
+def twist_setting(v: float, omega: float, wheelbase: float, max_angle: float) -> Setting:
+    """What a cmd_vel (linear.x = v, the rear axle's speed, m/s; angular.z = omega, rad/s) sets,
+    for a tractor of ``wheelbase`` l_1 whose steering reaches +-max_angle.
+
+    v != 0: psi_cmd = atan(l_1 omega / v), the bicycle relation (atan, not atan2: in reverse,
+    v < 0, a left yaw rate is a right steering angle, and |psi_cmd| < 90 deg), clamped to
+    +-max_angle; V = v / cos(psi_cmd), so that B_1 runs at v once the steering has settled.
+    v = 0: no steering gives a yaw rate at standstill (the wheels do not slip sideways), so the
+    message sets the speed (0) and leaves the steering command as it is (the session holds it
+    afresh: a controller talking at standstill is not a lost one for the watchdog)."""
+    refused = _refused("cmd_vel", {"linear.x": v, "angular.z": omega})
+    if refused:
+        return refused
+    if v == 0.0:
+        return Setting(speed=0.0)
+    problems: list[str] = []
+    s = _steer_and_speed(math.atan(wheelbase * omega / v), v, max_angle, problems)
+    s.problem = "cmd_vel: " + "; ".join(problems) if problems else ""
+    return s
+
+
+def ackermann_setting(steering_angle: float, steering_angle_velocity: float, speed: float,
+                      max_angle: float, max_rate: float) -> Setting:
+    """What an ackermann_cmd sets: psi_cmd = steering_angle clamped to +-max_angle; V = speed /
+    cos(psi_cmd) (speed is the rear axle's, as for cmd_vel); the rate limit = |steering_angle_velocity|
+    clamped to max_rate, the actuator's own (a commanded rate can slow the steering, not drive the
+    cylinder past its limit), or the actuator's own when it is 0 (the message's "as fast as
+    possible"). acceleration and jerk are not used: the traction law has its own dynamics."""
+    refused = _refused("ackermann_cmd", {"steering_angle": steering_angle,
+                                         "steering_angle_velocity": steering_angle_velocity, "speed": speed})
+    if refused:
+        return refused
+    problems: list[str] = []
+    s = _steer_and_speed(steering_angle, speed, max_angle, problems)
+    if steering_angle_velocity != 0.0:
+        rate = abs(steering_angle_velocity)
+        if rate > max_rate:
+            problems.append(f"steering_angle_velocity {steering_angle_velocity:.4g} rad/s beyond the actuator's "
+                            f"{max_rate:.4g}; clamped")
+            rate = max_rate
+        s.rate = rate
+    s.problem = "ackermann_cmd: " + "; ".join(problems) if problems else ""
+    return s
+
+
+class MessageInput:
+    """The counts of one message command topic (cmd_vel, ackermann_cmd), as CommandInput keeps
+    them for a Float64 one: received, refused, clamped, and what was wrong with the last one."""
+
+    def __init__(self, name: str):
+        self.name = name
+        self.count = self.rejected = self.clamped = 0
+        self.last_problem = ""
+
+    def take(self, setting: Setting) -> Setting:
+        self.count += 1
+        self.rejected += setting.refused
+        self.clamped += bool(setting.problem) and not setting.refused
+        self.last_problem = setting.problem
+        return setting

@@ -18,10 +18,23 @@ taken, as it would wait for the tick that applies it. The command subscriptions 
 handlers (rmw_fastrtps wakes an executor waiting on them at every message as well); a publisher
 they cannot hear (best effort) is said by the 1 Hz timer, from the graph.
 
+In lockstep (parameter ``lockstep``; session.py: the protocol) the command subscriptions are
+the executor's: each command is handed to the session and the session fires at once, so a tick
+follows an answer by the executor's latency, not a timer's period; the timer (every
+session.LOCKSTEP_TIMER_PERIOD s) runs the first tick, re-publishes unanswered outputs and says a
+stall. A flood then runs one tick per command, as fast as the node can: the controller's pace.
+
+cmd_vel and ackermann_cmd are taken raw (CDR bytes): the bag records them as received and the
+session reads them without ROS (messages/commands.py). ackermann_cmd is subscribed where
+ackermann_msgs is installed (its Python package and its .msg files), else the start-up log says
+it is not.
+
 Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /clock,
 /diagnostics, /tf and /tf_static, which are global by convention; the frames take the prefix
 ``unit1/``, urdf.frame_prefix):
     subscribes  steering_angle, speed_setpoint            std_msgs/Float64 (rad, m/s)
+                cmd_vel                                   geometry_msgs/Twist
+                ackermann_cmd                             ackermann_msgs/AckermannDriveStamped
     publishes   hitch_poses, cart_velocities, traction_power, applied_steering (see topics.py),
                 markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz),
                 /tf, /tf_static, joint_states, odom, robot_description (topics.FRAME_TOPICS)
@@ -53,7 +66,7 @@ from .ros_msgs import QOS
 from .params import PARAMS, ConfigError, Param, check_ros_args
 from .session import RunSession
 from .timing import reserve_cpu
-from .topics import BAG_TOPICS, COMMAND_TOPICS, LATCHED_TOPICS, WATCHDOG_TOPIC
+from .topics import BAG_TOPICS, COMMAND_TOPICS, LATCHED_TOPICS, MESSAGE_COMMANDS, WATCHDOG_TOPIC
 
 #: most commands of one topic taken at one firing of the tick timer (the reader holds QOS.depth)
 MAX_TAKE = 2 * QOS.depth
@@ -96,17 +109,29 @@ class SimNode(Node):
         cfg = {p.name: self.get_parameter(p.name).value for p in PARAMS}
         self.pubs = {topic: self.create_publisher(ros_msgs.message_class(type_name), topic,
                                                   ros_msgs.LATCHED_QOS if topic in LATCHED_TOPICS else QOS)
-                     for topic, type_name in BAG_TOPICS.items() if topic not in (*COMMAND_TOPICS, WATCHDOG_TOPIC)}
+                     for topic, type_name in BAG_TOPICS.items()
+                     if topic not in (*COMMAND_TOPICS, *MESSAGE_COMMANDS, WATCHDOG_TOPIC)}
         self.session = RunSession(cfg, clock=time.monotonic, publish=self._publish, log=self.get_logger(),
                                   name=self.get_name(), namespace=self.get_namespace(), profile=profile)
-        taken = TakenByTheTick()
+        lockstep = self.session.lockstep
+        group = None if lockstep else TakenByTheTick()  # lockstep: the executor runs them (module docstring)
         # No QoS event handlers on them: rmw_fastrtps wakes an executor waiting on a subscription's
         # events at every message too (a 10 kHz flood kept the executor's thread 70 % busy with
         # them); the 1 Hz timer asks the graph for publishers they cannot hear instead.
         quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
-        self.commands = {topic: self.create_subscription(Float64, topic, lambda msg, t=topic: self.session.command(t, msg.data),
-                                                         QOS, callback_group=taken, event_callbacks=quiet)
-                         for topic in COMMAND_TOPICS}
+        self.commands = {}
+        sources = [(topic, Float64, False) for topic in COMMAND_TOPICS]
+        for topic, type_name in MESSAGE_COMMANDS.items():
+            try:
+                if topic not in self.session.message_types:
+                    raise ImportError(f"no message definition of {type_name}")
+                sources.append((topic, ros_msgs.message_class(type_name), True))
+            except (ImportError, AttributeError) as err:
+                self.get_logger().info(f"not subscribing {topic}: {type_name} is not installed ({err})")
+        for topic, msg_type, raw in sources:
+            self.commands[topic] = self.create_subscription(
+                msg_type, topic, lambda msg, t=topic: self._command(t, msg), QOS, callback_group=group, raw=raw,
+                event_callbacks=quiet)
         self.unheard: set[tuple] = set()  # (topic, publisher gid) already said
         self.create_service(Trigger, "reset", self._on_reset)
         self.create_service(SetBool, "pause", self._on_pause)
@@ -148,15 +173,35 @@ class SimNode(Node):
                         f"subscribes reliable (keep last {QOS.depth}) and receives none of its commands; publish "
                         f"them reliable")
 
+    def _hand(self, topic: str, msg) -> None:
+        """One command to the session: a Float64's number, a message's CDR bytes."""
+        if topic in COMMAND_TOPICS:
+            self.session.command(topic, msg.data)
+        else:
+            self.session.command_message(topic, msg)
+
+    def _command(self, topic: str, msg) -> None:
+        """A command run by the executor (lockstep): to the session, which then ticks if it may."""
+        self._hand(topic, msg)
+        self.session.fire()
+
     def _take_commands(self) -> None:
-        """Hand the session the commands waiting in each command subscription, oldest first."""
+        """Hand the session the commands waiting in the command subscriptions (free running; in
+        lockstep the executor has handed them already), in the order the node's readers received
+        them, across topics: of two sources, the later one sets what they both set."""
+        if self.session.lockstep:
+            return
+        waiting = []
         for topic, sub in self.commands.items():
             for _ in range(MAX_TAKE):
                 with sub.handle:
                     taken = sub.handle.take_message(sub.msg_type, sub.raw)
                 if taken is None:
                     break
-                self.session.command(topic, taken[0].data)
+                waiting.append((taken[1]["received_timestamp"], len(waiting), topic, taken[0]))
+        waiting.sort(key=lambda w: w[:2])
+        for _, _, topic, msg in waiting:
+            self._hand(topic, msg)
 
     def _on_reset(self, request, response):
         response.message = self.session.reset()

@@ -69,6 +69,11 @@ PARAMS = (
     Param("fidelity", "", "model level: '' = the scene's (auto: the cheapest meeting its needs), or auto, "
           "kinematic, dynamic, slip; a change applies at the next reset", live=True,
           choices=("", "auto", "kinematic", "dynamic", "slip")),
+    Param("lockstep", False, "advance one tick only when a controller has answered the last outputs with a "
+          "command on any command topic (session.py: the protocol); real_time_factor and the watchdog do not "
+          "apply", live=False),
+    Param("lockstep_timeout", 5.0, "lockstep: wall s without an answer before the node says in the log and "
+          "/diagnostics (WARN) which topics it waits on; it keeps waiting", live=True, low=0.01, high=3600.0),
 )
 
 BY_NAME = {p.name: p for p in PARAMS}

@@ -7,10 +7,36 @@ sets the time instead of sleeping), messages leave as CDR bytes through an injec
 log lines through an injected ``log`` and the bytes are made by injected :class:`Encoders`.
 
 Each firing of the node's tick timer (:meth:`RunSession.fire`) runs the ticks due by the wall
-clock (pacing.py). Each tick (:meth:`RunSession.tick`) advances the model by one tick of simulated time holding the
+clock (pacing.py), or in lockstep (below) the one tick a controller's answer allows. Each tick (:meth:`RunSession.tick`) advances the model by one tick of simulated time holding the
 latest commands (zero-order hold), publishes the outputs stamped with simulation time and
 records the same bytes. Published time = clock_offset + the run's simulation time: a reset starts
 the model again while /clock goes on.
+
+Commands (:meth:`RunSession.command` for the Float64 topics, :meth:`RunSession.command_message`
+for cmd_vel and ackermann_cmd, as CDR bytes) are recorded as received, then go through one rule
+(commands.py): the latest accepted message of any source sets what it sets.
+
+Lockstep (parameter ``lockstep``, fixed at start), for a controller that answers each output with
+a command, as Gazebo's lockstep or CARLA's synchronous mode:
+
+1. the first firing runs tick 1 (with the commands held then: the scene's initial ones unless a
+   command came before) and publishes its outputs;
+2. then the session waits: no tick runs until a command arrives on any command topic
+   (steering_angle, speed_setpoint, cmd_vel, ackermann_cmd; refused or not: it is an answer);
+3. the next firing after an answer runs exactly one tick, holding the latest commands (two
+   answers before that firing still make one tick; the node fires at each answer, so one
+   message answers one tick);
+4. while waiting, every REPUBLISH_EVERY wall seconds the outputs of the last tick are published
+   again (not recorded: the bag has them), for a controller that subscribed late or lost them;
+5. after ``lockstep_timeout`` wall seconds without an answer it logs once which topics it waits
+   on and at which simulation time, and /diagnostics says WARN until the answer comes; it keeps
+   waiting (a stalled controller stops the simulation, never steers it by default);
+6. pause holds it as in free running; a reset starts the new run at step 1.
+
+The wall clock paces nothing in lockstep (real_time_factor is not used) and the command watchdog
+is off: a missing answer stops time instead of being taken for a stale command, so a run is a
+function of the commands alone and two runs of a deterministic controller record the same
+messages at the same log times.
 """
 from __future__ import annotations
 
@@ -21,12 +47,13 @@ from pathlib import Path
 from typing import Callable, Mapping, Protocol, Sequence
 
 from . import messages
-from .commands import CommandInput, command_ranges
+from .commands import CommandInput, MessageInput, Setting, ackermann_setting, command_ranges, twist_setting
 from .config import resolve_config_path
 from .diagnostics import Status, status
 from .integrate import IntegrationError
 from .model.guards import ModelValidityError
 from .model.loader import SpecError, load_scene
+from .messages.commands import CommandDecodeError, decode_ackermann, decode_twist
 from .pacing import Pacing
 from .params import BY_NAME, ConfigError, check_config, check_value
 from .recorder import RunRecorder
@@ -34,12 +61,32 @@ from .runlog import run_metadata, tick_figures, tick_line
 from .sim import Simulation
 from .timing import TickStats
 from .validate import InputError, show
-from .topics import BAG_TOPICS, COMMAND_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, WATCHDOG_TOPIC, qualified
+from .bag import MessageDefinitionNotFound, message_definition
+from .topics import (BAG_TOPICS, COMMAND_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, MESSAGE_COMMANDS, WATCHDOG_TOPIC,
+                     qualified)
 from .urdf import frame_prefix, robot_model
 from .watchdog import SteeringWatchdog
 
 #: Seconds between two log lines about bad commands on one topic (/diagnostics says every one).
 WARN_EVERY = 1.0
+#: Lockstep: wall seconds between two re-publications of outputs nobody has answered yet.
+REPUBLISH_EVERY = 1.0
+#: Lockstep: the tick timer's period, s (the first tick, re-publication, the stall warning; the
+#: ticks themselves run when an answer arrives).
+LOCKSTEP_TIMER_PERIOD = 0.05
+
+
+def message_commands() -> dict[str, str]:
+    """The message command topics (topics.MESSAGE_COMMANDS) whose definition is installed: the
+    bag needs it, and a node cannot subscribe a type it does not have (ackermann_msgs)."""
+    found = {}
+    for topic, type_name in MESSAGE_COMMANDS.items():
+        try:
+            message_definition(type_name)
+        except MessageDefinitionNotFound:
+            continue
+        found[topic] = type_name
+    return found
 
 
 class OutputsEncoder(Protocol):
@@ -137,8 +184,20 @@ class RunSession:
         self.steering = CommandInput(self.scene.initial.steering, *ranges["steering_angle"], "steering_angle", clock)
         self.speed = CommandInput(self.sim.v_set, *ranges["speed_setpoint"], "speed_setpoint", clock)
         self.inputs = {"steering_angle": self.steering, "speed_setpoint": self.speed}
-        self.warned_at = dict.fromkeys(COMMAND_TOPICS, -WARN_EVERY)
-        self.watchdog = SteeringWatchdog(self.steering, self.cfg["watchdog_timeout"], self.cfg["watchdog_action"])
+        self.message_types = message_commands()  # cmd_vel, and ackermann_cmd where installed
+        self.message_inputs = {t: MessageInput(t) for t in self.message_types}
+        self.wheelbase = self.scene.train.carts[0].length
+        self.rate_limit: float | None = None  # the steering's rate limit (ackermann_cmd); None = the actuator's
+        self.warned_at = dict.fromkeys((*COMMAND_TOPICS, *self.message_types), -WARN_EVERY)
+        self.lockstep = bool(self.cfg["lockstep"])
+        self.command_topics = [qualified(t, namespace) for t in (*COMMAND_TOPICS, *self.message_types)]
+        self.answered = True  # lockstep: the next firing may tick (the first one does)
+        self.published_at = self.republished_at = clock()
+        self.last_outputs: dict[str, bytes] = {}
+        self.stall_said = False
+        self.lockstep_stalls = 0  # waits that lasted past lockstep_timeout
+        self.republications = 0
+        self.watchdog = SteeringWatchdog(self.steering, self._watchdog_timeout(), self.cfg["watchdog_action"])
         self.clock_offset = 0.0  # published time = offset + run time; keeps /clock monotonic over resets
         self.paused = False
         self.halted = ""  # why the model stopped (jackknife...): it stays stopped until a reset
@@ -152,17 +211,28 @@ class RunSession:
         self.ticks_waiting_for_bag = 0  # timer firings held while the bag writer was behind
         self.ticks_caught_up = 0  # ticks run by a firing after its first, to make up a lag (pacing.py)
         if self.cfg["record"]:
-            in_bag = {t: qualified(t, namespace) for t in BAG_TOPICS}  # e.g. hitch_poses -> /unit1/hitch_poses
-            self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in BAG_TOPICS.items()},
+            bag_topics = {t: ty for t, ty in BAG_TOPICS.items() if t not in MESSAGE_COMMANDS or t in self.message_types}
+            in_bag = {t: qualified(t, namespace) for t in bag_topics}  # e.g. hitch_poses -> /unit1/hitch_poses
+            self.recorder = RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in bag_topics.items()},
                                         self.run_metadata(), background=background, rename=in_bag,
                                         qos={in_bag[t]: LATCHED_QOS_YAML for t in LATCHED_TOPICS})
             self._start_bag()
         self._publish_latched(LATCHED_TOPICS)
-        self.pacing = Pacing(self.sim.tick, self.cfg["real_time_factor"], clock)  # from now: the timer's start
+        # from now: the timer's start; in lockstep nothing is paced (target 0: no lag, the factor measured)
+        self.pacing = Pacing(self.sim.tick, self._target(), clock)
+        pace = "lockstep (one tick per answer)" if self.lockstep else f"real-time factor {self.cfg['real_time_factor']:g}"
         self.log.info(
             f"scene '{self.scene.name}', {len(self.cart_names)} carts, {self.sim.method} step {self.sim.step:g} s, "
-            f"tick {self.sim.tick:g} s, real-time factor {self.cfg['real_time_factor']:g}; "
+            f"tick {self.sim.tick:g} s, {pace}; "
             f"fidelity {self.sim.choice.reason}; {self.sim.compiled_note}")
+
+    def _target(self) -> float:
+        """The real-time factor pacing keeps: the parameter's, or 0 (nothing paced) in lockstep."""
+        return 0.0 if self.lockstep else self.cfg["real_time_factor"]
+
+    def _watchdog_timeout(self) -> float:
+        """The watchdog's timeout: the parameter's, or 0 (never stale) in lockstep."""
+        return 0.0 if self.lockstep else self.cfg["watchdog_timeout"]
 
     def _simulation(self) -> Simulation:
         """A Simulation of the scene with the integrator and fidelity parameters."""
@@ -213,13 +283,16 @@ class RunSession:
     @property
     def timer_period(self) -> float:
         """Seconds between two firings of the tick timer (pacing.py: the period, at most
-        pacing.MAX_TIMER_PERIOD)."""
-        return self.pacing.timer_period
+        pacing.MAX_TIMER_PERIOD; LOCKSTEP_TIMER_PERIOD in lockstep)."""
+        return LOCKSTEP_TIMER_PERIOD if self.lockstep else self.pacing.timer_period
 
     # -- the tick --------------------------------------------------------------------------
     def fire(self) -> int:
         """One firing of the tick timer: the ticks due now (pacing.Pacing.due: one when on time,
-        more to make up a late firing, none while paused); returns how many ran."""
+        more to make up a late firing, none while paused; in lockstep: :meth:`_fire_lockstep`);
+        returns how many ran."""
+        if self.lockstep:
+            return self._fire_lockstep()
         ran = 0
         for _ in range(0 if self.halted else self.pacing.due(self.now)):
             if not self.tick():
@@ -227,6 +300,33 @@ class RunSession:
             ran += 1
         self.ticks_caught_up += max(0, ran - 1)
         return ran
+
+    def _fire_lockstep(self) -> int:
+        """A firing in lockstep (module docstring): one tick if the last outputs were answered,
+        else re-publish them every REPUBLISH_EVERY s and say a stall past lockstep_timeout."""
+        if self.halted or self.paused:
+            return 0
+        if self.answered:
+            return int(self.tick())
+        now = self.clock()
+        if self.last_outputs and now - self.republished_at >= REPUBLISH_EVERY:
+            self.republished_at = now
+            self.republications += 1
+            self.publish(self.last_outputs)
+        if not self.stall_said and self.lockstep_waiting() > self.cfg["lockstep_timeout"]:
+            self.stall_said = True
+            self.lockstep_stalls += 1
+            self.log.warning(self._stall())
+        return 0
+
+    def lockstep_waiting(self) -> float:
+        """Lockstep: wall seconds the last outputs have waited for an answer (0 when answered)."""
+        return 0.0 if not self.lockstep or self.answered else self.clock() - self.published_at
+
+    def _stall(self) -> str:
+        return (f"lockstep: waiting {self.lockstep_waiting():.1f} s (wall) for a command on any of "
+                f"{', '.join(self.command_topics)}, answering the outputs at t = {self.now:.3f} s; "
+                f"still waiting")
 
     def tick(self) -> bool:
         """Advance, publish and record one tick; returns whether it did. Nothing while paused or
@@ -244,6 +344,7 @@ class RunSession:
         started, cpu_started = self.compute_clock(), self.cpu_clock()
         if self.watchdog.update():
             self._record({WATCHDOG_TOPIC: self.enc.float64(self.watchdog.command)})
+        self.sim.set_rate_limit(self.rate_limit)
         try:
             self.sim.advance(self.watchdog.command, self.speed.value)
         except (ModelValidityError, IntegrationError) as err:
@@ -268,6 +369,11 @@ class RunSession:
         if profile is not None:
             profile.mark("markers")
         self.publish(msgs)
+        if self.lockstep:  # from now the tick waits for an answer to these outputs
+            if self.stall_said:
+                self.log.info(f"lockstep: answered; running again at t = {self.now:.3f} s")
+            self.answered, self.stall_said, self.last_outputs = False, False, msgs
+            self.published_at = self.republished_at = self.clock()
         if profile is not None:
             profile.mark("publish")
         if self.recorder is not None and self.recorder.recording:  # the same bytes, to the bag writer's thread
@@ -294,9 +400,43 @@ class RunSession:
         simulation time it arrived, then held if valid, clamped to its range, or refused."""
         inp = self.inputs[topic]
         self._record({topic: self.enc.float64(x)})
-        if inp.take(x) != x and self.clock() - self.warned_at[topic] >= WARN_EVERY:  # refused or clamped
+        self.answered = True
+        held = inp.take(x)
+        if held is not None and topic == "steering_angle":
+            self.rate_limit = None  # the rate limit goes with the steering command: the actuator's own
+        if held != x:  # refused or clamped
+            self._warn(topic, inp.last_problem)
+
+    def command_message(self, topic: str, data: bytes) -> None:
+        """A command message received on ``topic`` (cmd_vel, ackermann_cmd: self.message_types)
+        as its CDR bytes: recorded as received at the simulation time it arrived, then what it
+        sets (commands.twist_setting, ackermann_setting) is held, clamped, or it is refused."""
+        self._record({topic: bytes(data)})
+        self.answered = True
+        try:
+            if topic == "cmd_vel":
+                setting = twist_setting(*decode_twist(data), self.wheelbase, self.steering.high)
+            else:
+                setting = ackermann_setting(*decode_ackermann(data), self.steering.high,
+                                            self.scene.train.actuator.max_rate)
+        except CommandDecodeError as err:
+            setting = Setting(problem=f"{topic}: {err}; refused", refused=True)
+        self.message_inputs[topic].take(setting)
+        if setting.steering is not None:
+            self.steering.set(setting.steering)
+            self.rate_limit = setting.rate
+        elif not setting.refused:  # cmd_vel at v = 0 holds the steering as it is: a fresh command for the watchdog
+            self.steering.set(self.steering.value)
+        if setting.speed is not None:
+            self.speed.set(setting.speed)
+        if setting.problem:
+            self._warn(topic, setting.problem)
+
+    def _warn(self, topic: str, problem: str) -> None:
+        """A bad command said in the log, at most once every WARN_EVERY s a topic."""
+        if self.clock() - self.warned_at[topic] >= WARN_EVERY:
             self.warned_at[topic] = self.clock()
-            self.log.warning(inp.last_problem)
+            self.log.warning(problem)
 
     def pause(self, paused: bool) -> str:
         """Pause (no ticks, simulated time stands) or run on; returns what it is now."""
@@ -322,6 +462,10 @@ class RunSession:
         self.steering.value = self.scene.initial.steering
         self.speed.value = self.sim.v_set
         self.steering.last_problem = self.speed.last_problem = ""  # a new run: its own commands
+        for inp in self.message_inputs.values():
+            inp.last_problem = ""
+        self.rate_limit = None
+        self.answered, self.stall_said, self.last_outputs = True, False, {}  # lockstep: step 1 again
         self.halted = ""
         self.pacing.restart(self.now)
         path = self._start_bag()
@@ -356,9 +500,9 @@ class RunSession:
         for name, value in changes.items():
             if name in BY_NAME:
                 self.cfg[name] = value
-        if "real_time_factor" in changes:
+        if "real_time_factor" in changes and not self.lockstep:
             self.pacing.set_target(self.cfg["real_time_factor"], self.now)
-        self.watchdog.timeout, self.watchdog.action = self.cfg["watchdog_timeout"], self.cfg["watchdog_action"]
+        self.watchdog.timeout, self.watchdog.action = self._watchdog_timeout(), self.cfg["watchdog_action"]
         if "frame_id" in changes:
             self._make_encoders()  # the frame is part of the templates
             self._publish_latched(("/tf_static",))  # frame_id -> odom
@@ -422,8 +566,19 @@ class RunSession:
             "fidelity_at_next_reset": self.cfg["fidelity"] or "the scene's",
             "paused": self.paused,
             "bag": str(recorder.path) if recorder and recorder.recording else "",
+            "lockstep": self.lockstep,
         }
-        problems = [recorder.error if recorder else "", steering.last_problem, self.speed.last_problem]
+        for topic, inp in self.message_inputs.items():
+            values.update({f"{topic}_commands": inp.count, f"{topic}_rejected": inp.rejected,
+                           f"{topic}_clamped": inp.clamped})
+        problems = [recorder.error if recorder else "", steering.last_problem, self.speed.last_problem,
+                    *(inp.last_problem for inp in self.message_inputs.values())]
+        if self.lockstep:
+            waiting = self.lockstep_waiting()
+            values.update(lockstep_waiting_s=waiting, lockstep_stalls=self.lockstep_stalls,
+                          lockstep_republished=self.republications)
+            if waiting > self.cfg["lockstep_timeout"]:
+                problems.append(self._stall())
         if self.watchdog.stale():
             problems.append(f"steering command stale ({steering.age():.1f} s): {self.cfg['watchdog_action']}")
         return status(self.halted, problems, values)

@@ -7,6 +7,7 @@ command sequence, and a run is deterministic.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -199,10 +200,33 @@ class Simulation:
         self.y = start_state(self.scene, self.model)
         self.command = self.scene.initial.steering
         self.v_set = speed_setpoint(self.scene, 0.0)
+        self.set_rate_limit(None)
 
     @property
     def t(self) -> float:
         return self.ticks * self.tick
+
+    def set_rate_limit(self, rate: float | None) -> None:
+        """The steering actuator's rate limit from the next tick on, rad/s (None: the train's own
+        max_rate): psi_1' = clip((clip(command, +-max_angle) - psi_1) / time_constant, +-rate),
+        the actuator law of docs/model.md with ``rate`` in place of max_rate (ackermann_cmd's
+        steering_angle_velocity, commands.ackermann_setting). The stability and step limits of the
+        run depend on the time constant only, so they hold. Set in every parameter array and
+        train the model and its parts read (the kernels' P, the reference and slip levels' train)."""
+        act = self.scene.train.actuator
+        rate = act.max_rate if rate is None else float(rate)
+        if rate == getattr(self, "_rate_limit", act.max_rate):
+            return
+        self._rate_limit = rate
+        actuator = dataclasses.replace(act, max_rate=rate)
+        parts = [self.model, *(v for v in vars(self.model).values() if hasattr(v, "train") or hasattr(v, "P"))]
+        for part in parts:
+            if getattr(part, "train", None) is not None:
+                part.train = dataclasses.replace(part.train, actuator=actuator)
+            for name in ("P", "P_outputs"):
+                P = getattr(part, name, None)
+                if isinstance(P, np.ndarray):
+                    P[kernel.H.max_rate] = rate
 
     @property
     def kinks(self) -> int:

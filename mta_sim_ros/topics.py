@@ -48,6 +48,11 @@ TOPICS = {
 # The inputs of the simulator (the node subscribes to these; the others it publishes).
 COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
 
+# The node's commands in the conventions controllers speak (commands.py: one rule for all):
+# topic -> type. The node subscribes ackermann_cmd only where ackermann_msgs is installed.
+MESSAGE_COMMANDS = {"cmd_vel": "geometry_msgs/msg/Twist",
+                    "ackermann_cmd": "ackermann_msgs/msg/AckermannDriveStamped"}
+
 # Bag only (the node records it, never publishes it): the steering command the node holds from
 # this tick on because its command watchdog took over (0.0 when a stale command is replaced by
 # 'straight') or gave back (the last received command), so a re-simulation holds what the node held.
@@ -76,7 +81,7 @@ LATCHED_TOPICS = ("/tf_static", "robot_description")
 LATCHED_QOS_YAML = qos_profiles_yaml(durability="transient_local", depth=1)
 
 #: Every topic of a node's bag (relative names as the node uses them) -> type.
-BAG_TOPICS = {**TOPICS, **FRAME_TOPICS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE,
+BAG_TOPICS = {**TOPICS, **FRAME_TOPICS, **MESSAGE_COMMANDS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE,
               WATCHDOG_TOPIC: WATCHDOG_TYPE}
 
 

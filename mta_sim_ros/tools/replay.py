@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..bag import BagError, read_messages, read_metadata
-from ..commands import command_ranges, hold
+from ..commands import ackermann_setting, command_ranges, hold, twist_setting
 from ..runlog import RECORD, recorded_options, recorded_scene
 from ..topics import WATCHDOG_TOPIC
 from ..model.spec import INTEGRATOR_METHODS as METHODS
@@ -55,7 +55,7 @@ from .run import Progress
 #: Outputs compared by --resimulate (last name component of the topic).
 OUTPUTS = ("hitch_poses", "cart_velocities", "traction_power", "applied_steering")
 #: Commands fed into the re-simulation.
-COMMANDS = ("steering_angle", "speed_setpoint", WATCHDOG_TOPIC)
+COMMANDS = ("steering_angle", "speed_setpoint", "cmd_vel", "ackermann_cmd", WATCHDOG_TOPIC)
 #: Topics republished under their recorded (global) name; the others move with the namespace.
 GLOBAL_TOPICS = frozenset({"/clock", "/diagnostics", "/tf", "/tf_static", "/rosout", "/parameter_events"})
 
@@ -362,6 +362,33 @@ def compare_message(dev: Deviation, name: str, recorded, expected: dict, t: floa
                 return
 
 
+class _RateLimit:
+    """A steering_angle command: held as a _Held, and the actuator's own rate limit with it
+    (commands.py: the rate goes with the steering command)."""
+
+    def __init__(self, steering: "_Held"):
+        self.steering, self.rate = steering, None
+
+    def take(self, x: float) -> None:
+        self.steering.take(x)
+        if math.isfinite(x):  # accepted (held, maybe clamped): session.RunSession.command
+            self.rate = None
+
+
+class _Messages:
+    """A cmd_vel or ackermann_cmd command, taken as commands.Setting: what it sets is held."""
+
+    def __init__(self, steering: "_Held", speed: "_Held", rate: _RateLimit):
+        self.steering, self.speed, self.rate = steering, speed, rate
+
+    def take(self, setting) -> None:
+        if setting.steering is not None:
+            self.steering.value = setting.steering
+            self.rate.rate = setting.rate
+        if setting.speed is not None:
+            self.speed.value = setting.speed
+
+
 class _Held:
     """A command as the receiver holds it: the node refuses non-finite values and clamps to its
     range (``commands.hold``); ``mta run`` takes the values as they are (no range)."""
@@ -417,12 +444,30 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
     ranges = command_ranges(scene) if node_bag else {}
     steering = _Held(sim.command, ranges.get("steering_angle"))
     speed = _Held(sim.v_set, ranges.get("speed_setpoint"))
-    commands = []  # (log_time, order, holder, value), in log-time order, ties in recorded order
+    steering_rate = _RateLimit(steering)
+    wheelbase, actuator = scene.train.carts[0].length, scene.train.actuator
+    messages = _Messages(steering, speed, steering_rate)
+
+    def cmd_vel(m):
+        return twist_setting(float(m.linear.x), float(m.angular.z), wheelbase, actuator.max_angle)
+
+    def ackermann_cmd(m):
+        d = m.drive
+        return ackermann_setting(float(d.steering_angle), float(d.steering_angle_velocity), float(d.speed),
+                                 actuator.max_angle, actuator.max_rate)
+
+    # (log_time, order, holder, value) in log-time order, ties in the order they were recorded (one
+    # read of every command topic: the bag's order, so that of two sources the later one wins);
     # the watchdog's record is the steering the node held from then on (see topics.WATCHDOG_TOPIC)
-    for name, holder in (("steering_angle", steering), ("speed_setpoint", speed), (WATCHDOG_TOPIC, steering)):
-        if name in topics:
-            commands += [(lt, i, holder, float(m.data)) for i, (_, lt, m) in
-                         enumerate(read_messages(bag, [topics[name]]))]
+    readers = {"steering_angle": (steering_rate, float), "speed_setpoint": (speed, float),
+               "cmd_vel": (messages, cmd_vel), "ackermann_cmd": (messages, ackermann_cmd),
+               WATCHDOG_TOPIC: (steering, float)}
+    by_recorded = {topics[n]: readers[n] for n in COMMANDS if n in topics}
+    commands = []
+    if by_recorded:
+        for i, (topic, lt, m) in enumerate(read_messages(bag, list(by_recorded))):
+            holder, read = by_recorded[topic]
+            commands.append((lt, i, holder, float(m.data) if read is float else read(m)))
     commands.sort(key=lambda c: (c[0], c[1]))
     next_command = 0
 
@@ -447,6 +492,7 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
                 _, _, holder, value = commands[next_command]
                 holder.take(value)
                 next_command += 1
+            sim.set_rate_limit(steering_rate.rate)
             try:
                 sim.advance(steering.value, speed.value)
             except (ModelValidityError, IntegrationError) as err:

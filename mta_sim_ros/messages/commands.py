@@ -1,0 +1,58 @@
+"""The command messages a controller sends, read from their CDR bytes without ROS: cmd_vel
+(geometry_msgs/Twist) and ackermann_cmd (ackermann_msgs/AckermannDriveStamped).
+
+The node hands the session the bytes it received (the bag records them as they are) and the
+session reads the few numbers the command rule needs (commands.twist_setting,
+commands.ackermann_setting). Both layouts are fixed by their ``.msg`` files (CDR, XCDR1 as
+rmw_fastrtps writes them: a 4-byte encapsulation header, then each primitive aligned to its size
+counted from the end of the header); ``test/test_commands.py`` holds them to rclpy's serializer.
+"""
+from __future__ import annotations
+
+import struct
+
+TWIST_TYPE = "geometry_msgs/msg/Twist"
+ACKERMANN_TYPE = "ackermann_msgs/msg/AckermannDriveStamped"
+
+#: the encapsulation identifiers of plain CDR: big and little endian
+_ENDIAN = {b"\x00\x00": ">", b"\x00\x01": "<"}
+
+
+class CommandDecodeError(ValueError):
+    """Bytes that are not a CDR message of the expected type."""
+
+
+def _endian(data: bytes, type_name: str) -> str:
+    order = _ENDIAN.get(bytes(data[:2]))
+    if order is None:
+        raise CommandDecodeError(f"{type_name}: encapsulation {bytes(data[:2]).hex()} is not plain CDR")
+    return order
+
+
+def decode_twist(data: bytes) -> tuple[float, float]:
+    """(linear.x, angular.z) of a geometry_msgs/Twist: linear (x, y, z) then angular (x, y, z),
+    six float64 from offset 4."""
+    order = _endian(data, TWIST_TYPE)
+    if len(data) < 4 + 48:
+        raise CommandDecodeError(f"{TWIST_TYPE}: {len(data)} bytes, expected at least 52")
+    linear_x, _, _, _, _, angular_z = struct.unpack_from(order + "6d", data, 4)
+    return linear_x, angular_z
+
+
+def decode_ackermann(data: bytes) -> tuple[float, float, float]:
+    """(steering_angle, steering_angle_velocity, speed) of an ackermann_msgs/AckermannDriveStamped:
+    header (stamp: int32 sec, uint32 nanosec; frame_id: uint32 length with the NUL, the
+    characters), then drive (float32 steering_angle, steering_angle_velocity, speed,
+    acceleration, jerk) aligned to 4."""
+    order = _endian(data, ACKERMANN_TYPE)
+    body = memoryview(data)[4:]
+    if len(body) < 12:
+        raise CommandDecodeError(f"{ACKERMANN_TYPE}: {len(data)} bytes, too short for a header")
+    (length,) = struct.unpack_from(order + "I", body, 8)
+    offset = 12 + length
+    offset += -offset % 4
+    if len(body) < offset + 20:
+        raise CommandDecodeError(f"{ACKERMANN_TYPE}: {len(data)} bytes, too short for its frame_id of "
+                                 f"{length} bytes and the drive")
+    steering, rate, speed, _, _ = struct.unpack_from(order + "5f", body, offset)
+    return steering, rate, speed
