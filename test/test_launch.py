@@ -375,9 +375,9 @@ def test_views_name_the_running_nodes_topics_qos_and_frames(tmp_path, probe):
             assert mine, f"{name}: the node publishes no {topic['Value']}"
             qos = mine[0].qos_profile
             if topic.get("Reliability Policy") == "Reliable":
-                assert qos.reliability == ReliabilityPolicy.RELIABLE, f"{name}: the node's is {qos.reliability}"
+                assert qos.reliability == ReliabilityPolicy.RELIABLE, f"{name}: the node's is {qos.reliability!r}"
             if topic.get("Durability Policy") == "Transient Local":
-                assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL, f"{name}: the node's is {qos.durability}"
+                assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL, f"{name}: the node's is {qos.durability!r}"
 
         frames = urdf_links(description[-1].data)
         frames |= {odometry[-1].header.frame_id, odometry[-1].child_frame_id, poses[-1].header.frame_id}
