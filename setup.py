@@ -20,9 +20,20 @@ from setuptools import find_packages, setup
 package_name = 'mta_sim_ros'
 
 
-def config_data_files():
-    """Install config/**/*.yaml and config/*.xml (the Fast DDS loopback profile) to
-    share/<pkg>/config/..., keeping subfolders.
+#: What goes to share/<pkg>/, as globs relative to setup.py: the scene, train and parameter YAML
+#: files, the Fast DDS loopback profile, the RViz config and the Foxglove layout, and the launch
+#: files (``ros2 launch mta_sim_ros sim.launch.py`` looks in share/<pkg>/launch).
+SHARE_GLOBS = (
+    'config/**/*.yaml',
+    'config/*.xml',
+    'config/**/*.rviz',
+    'config/**/*.json',
+    'launch/*.launch.py',
+)
+
+
+def share_data_files():
+    """Install every file SHARE_GLOBS match to share/<pkg>/<its folder>, keeping subfolders.
 
     Globbed at build time so new scene/train files are picked up without
     editing this file. Paths stay relative to setup.py (setuptools and colcon
@@ -30,8 +41,9 @@ def config_data_files():
     """
     here = os.path.dirname(os.path.abspath(__file__))
     by_dir = defaultdict(list)
-    found = glob.glob(os.path.join(here, 'config', '**', '*.yaml'), recursive=True)
-    found += glob.glob(os.path.join(here, 'config', '*.xml'))
+    found = set()
+    for pattern in SHARE_GLOBS:
+        found.update(glob.glob(os.path.join(here, pattern), recursive=True))
     for path in sorted(found):
         rel = os.path.relpath(path, here)
         by_dir[os.path.join('share', package_name, os.path.dirname(rel))].append(rel)
@@ -46,7 +58,7 @@ setup(
         ('share/ament_index/resource_index/packages',
             ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-    ] + config_data_files(),
+    ] + share_data_files(),
     # Plain-Python runtime deps only. The ROS 2 wheels (ros-jazzy-rclpy,
     # ros-jazzy-common-interfaces) are deliberately NOT listed: on a real ROS
     # install rclpy and the message packages come from the ROS distro (apt),

@@ -108,6 +108,8 @@ TOOL_FAULTS = [
     ("maneuver-duration", ["maneuver", "--duration", "nan"], ["argument --duration: nan", "a finite number"]),
     ("maneuver-param-alone", ["maneuver", "--param", "t0=1"], ["--param: given without --maneuver"]),
     ("maneuver-param-nan", ["maneuver", "--maneuver", "step", "--param", "t0=nan"], ["t0: nan", "a finite number"]),
+    ("rsp-feed-target", ["rsp_feed", "--target", "robot state"], ["argument --target: 'robot state'", "a node name"]),
+    ("rsp-feed-target-slash", ["rsp_feed", "--target", "rsp/"], ["argument --target: 'rsp/'", "a node name"]),
     ("session-rate", ["session", "--rate", "0"], ["argument --rate: 0", "in [1, 1000]"]),
     ("session-rtf", ["session", "--real-time-factor", "-1"], ["argument --real-time-factor: -1", "in [0, 1000]"]),
     ("session-bag-dir", ["session", "--bag-dir", "{tmp}/FILE"], ["argument --bag-dir: ", "it is a file"]),

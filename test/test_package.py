@@ -6,7 +6,10 @@
     on a real ROS install.
 (b) `colcon build` of a copy of the package produces the layout `ros2 run`
     relies on: executables in lib/mta_sim_ros/, package.xml and the config
-    YAML files in share/mta_sim_ros/, and the ament index marker.
+    YAML files in share/mta_sim_ros/, and the ament index marker; and the one
+    `ros2 launch` relies on: the launch files, the RViz config and the Foxglove
+    layout in share/mta_sim_ros/, with every executable and file the launch
+    files name present in the install (test_launch.py checks the rest).
 """
 
 import ast
@@ -53,10 +56,11 @@ def _manifest():
     return ET.parse(REPO / 'package.xml').getroot()
 
 
-def _imported_top_level_modules():
-    """Map top-level module name -> list of 'file:line' that import it."""
+def _imported_top_level_modules(paths=None):
+    """Map top-level module name -> list of 'file:line' that import it (in ``paths``, default
+    every module of the package)."""
     found = {}
-    for path in sorted((REPO / PKG).rglob('*.py')):
+    for path in sorted((REPO / PKG).rglob('*.py')) if paths is None else paths:
         tree = ast.parse(path.read_text(encoding='utf-8'), filename=str(path))
         for node in ast.walk(tree):
             if isinstance(node, ast.Import):
@@ -139,6 +143,21 @@ def test_every_imported_ros_package_is_an_exec_depend():
         f'Python libraries imported but missing from requirements.txt: {missing_pip}')
 
 
+def test_the_launch_files_imports_are_exec_depends():
+    """launch/*.launch.py run on the user's ROS install: every ROS package they import is an
+    <exec_depend>, and they import nothing else but the standard library and this package."""
+    root = _manifest()
+    exec_deps = {e.text.strip() for e in root.findall('exec_depend')}
+    imports = _imported_top_level_modules(sorted((REPO / 'launch').glob('*.launch.py')))
+    assert {'launch', 'launch_ros'} <= set(imports)
+    missing = {name: where for name, where in imports.items() if _is_ros_module(name) and name not in exec_deps}
+    assert not missing, f'ROS packages the launch files import, not <exec_depend>: {missing}'
+    other = {name: where for name, where in imports.items()
+             if not _is_ros_module(name) and name not in sys.stdlib_module_names and name != PKG}
+    assert not other, f'the launch files import undeclared modules: {other}'
+    assert 'ros2launch' in exec_deps, '`ros2 launch` itself'
+
+
 def test_no_unknown_third_party_imports():
     """A new third-party import must be declared; then add it to the maps above."""
     own = {PKG, 'test'}
@@ -156,7 +175,7 @@ def test_no_unknown_third_party_imports():
 # colcon build
 # --------------------------------------------------------------------------
 
-_COPY_ITEMS = ('package.xml', 'setup.py', 'setup.cfg', 'resource', PKG, 'config')
+_COPY_ITEMS = ('package.xml', 'setup.py', 'setup.cfg', 'resource', PKG, 'config', 'launch')
 
 _PLACEHOLDER_MAIN = '''"""Test-only placeholder (the real module does not exist yet)."""
 import sys
@@ -263,6 +282,42 @@ def test_colcon_installs_share_files(colcon_install):
     assert yamls, 'no config YAML in the copy'
     for rel in yamls:
         assert (share / rel).is_file(), f'{rel} not installed to {share / rel}'
+
+
+def test_colcon_installs_the_launch_files_and_the_views(colcon_install):
+    """launch/*.launch.py to share/<pkg>/launch (where `ros2 launch mta_sim_ros X` looks), and
+    every file of config/ (the RViz config, the Foxglove layout, the loopback profile too)."""
+    src, install, proc = colcon_install
+    assert proc.returncode == 0, _output(proc)
+    share = install / 'share' / PKG
+    wanted = sorted(p.relative_to(src) for p in (src / 'launch').glob('*.launch.py'))
+    wanted += sorted(p.relative_to(src) for p in (src / 'config').rglob('*') if p.is_file())
+    assert any(p.suffix == '.rviz' for p in wanted) and any(p.suffix == '.json' for p in wanted)
+    missing = [str(rel) for rel in wanted if not (share / rel).is_file()]
+    assert not missing, f'not installed to {share}: {missing}'
+
+
+def test_launch_files_name_only_what_the_install_has(colcon_install):
+    """Each mta_sim_ros executable a launch file starts is in the install's lib/mta_sim_ros, and
+    each file it joins under share/mta_sim_ros (params file, RViz config, included launch files)
+    is in the install's share/mta_sim_ros: read from the installed launch files themselves."""
+    import launchfiles
+
+    _, install, proc = colcon_install
+    assert proc.returncode == 0, _output(proc)
+    share, lib = install / 'share' / PKG, install / 'lib' / PKG
+    installed = sorted((share / 'launch').glob('*.launch.py'))
+    assert installed
+    for path in installed:
+        lf = launchfiles.read(path)
+        assert lf.problems == [], lf.problems
+        for node in lf.nodes:
+            if node.package == PKG:
+                exe = lib / node.executable
+                assert exe.is_file() and exe.stat().st_mode & stat.S_IXUSR, f'{node.where}: {exe} missing'
+        for joined in lf.share_paths + [i.path for i in lf.includes]:
+            assert joined.package == PKG and None not in joined.parts, joined
+            assert (share / Path(*joined.parts)).is_file(), f'{joined.where}: {joined.parts} not in {share}'
 
 
 def test_colcon_installs_every_module(colcon_install):
