@@ -267,16 +267,19 @@ def test_namespaced_node_style_bag(tmp_path):
             w.add_topic(qualified(topic, "/unit1"), type_name)
         w.add_topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
 
+        diagnostics = {offset_ns: [{"key": "lag_s", "value": "0"}],  # written in log-time order, as the node does
+                       offset_ns + 10**9: [{"key": "lag_s", "value": "0"}, {"key": "rtf", "value": "1.0"}]}
+
         def record(out):
             stamp = offset_ns + round(out.t * 1e9)
             for topic, msg in {**output_messages(out, names), **command_messages(out)}.items():
                 w.write(qualified(topic, "/unit1"), msg, stamp)
+            if stamp in diagnostics:
+                w.write("/diagnostics", {"status": [{"name": "sim", "message": "ok",
+                                                     "values": diagnostics.pop(stamp)}]}, stamp)
 
         run_scene(scene, on_output=record)
-        w.write("/diagnostics", {"status": [{"name": "sim", "message": "ok",
-                                             "values": [{"key": "lag_s", "value": "0"}]}]}, offset_ns)
-        w.write("/diagnostics", {"status": [{"name": "sim", "message": "ok", "values": [
-            {"key": "lag_s", "value": "0"}, {"key": "rtf", "value": "1.0"}]}]}, offset_ns + 10**9)
+        assert not diagnostics, "the run passed no tick at these times"
     done = mta("analyze", bag, cwd=tmp_path)  # default folder: reports/<bag stem>/
     assert done.returncode == 0, done.stderr
     folder = tmp_path / "reports" / "node_run"
