@@ -75,7 +75,7 @@ test: $(STAMP)
 # numba's disk cache of the kernels in the venv: each venv keeps its own compiled code (numba
 # drops a cache written by another numba version, so sharing would recompile on every switch).
 test-noble: $(NOBLE_STAMP)
-	NUMBA_CACHE_DIR=$(CURDIR)/$(NOBLE_VENV)/numba-cache $(NOBLE_VENV)/bin/python -m pytest -q test
+	NUMBA_CACHE_DIR=$(abspath $(NOBLE_VENV))/numba-cache $(NOBLE_VENV)/bin/python -m pytest -q test
 
 # --paths (not --base-paths): build exactly this package; a recursive crawl
 # would also find the package.xml files shipped inside $(VENV).
