@@ -23,6 +23,11 @@ PIP_STAMP := $(VENV)/.mta_sim_ros.stamp
 # the venv is complete once tf2_msgs and ackermann_msgs are built into it (tools/build_interfaces.sh)
 STAMP := $(VENV)/.mta_interfaces.stamp
 INTERFACE_FILES := $(shell find interfaces -type f) tools/build_interfaces.sh tools/drop_missing_include_dirs.cmake
+# The second stack (make test-noble): Ubuntu 24.04's numpy, scipy, matplotlib and numba, the
+# versions a ROS 2 Jazzy install has, by constraints-noble.txt over the same requirements.txt.
+NOBLE_VENV ?= .venv-noble
+NOBLE_PIP_STAMP := $(NOBLE_VENV)/.mta_sim_ros.stamp
+NOBLE_STAMP := $(NOBLE_VENV)/.mta_interfaces.stamp
 
 # colcon workspace dirs (ignored by git).
 COLCON_BASE ?= .
@@ -32,7 +37,7 @@ SCENE ?= config/scenes/headland_turn.yaml
 # offline target (make offline): the same scene without ROS, as fast as possible
 BAG ?= bags/headland_turn.mcap
 
-.PHONY: venv run offline node test colcon clean distclean help
+.PHONY: venv venv-noble run offline node test test-noble colcon clean distclean help
 
 help:
 	@echo "make venv     create $(VENV) (Python 3.11) with requirements.txt + pip install -e ., build interfaces/ into it"
@@ -40,23 +45,30 @@ help:
 	@echo "make offline  the same scene offline (mta run, no ROS graph) into $(BAG)"
 	@echo "make node     start the simulator node (config/sim.yaml), until Ctrl-C"
 	@echo "make test     run the test suite (pytest)"
+	@echo "make test-noble  the test suite on Ubuntu 24.04's numpy/scipy/matplotlib/numba, in $(NOBLE_VENV)"
 	@echo "make colcon   colcon build into $(COLCON_BASE)/build, install, log"
-	@echo "make clean    remove build artifacts (keeps $(VENV)); distclean also removes $(VENV)"
+	@echo "make clean    remove build artifacts (keeps the venvs); distclean also removes $(VENV) and $(NOBLE_VENV)"
 
 venv: $(STAMP)
+venv-noble: $(NOBLE_STAMP)
 
-# Recreated/updated when requirements.txt, setup.py or setup.cfg change.
-$(PIP_STAMP): requirements.txt setup.py setup.cfg
+# One recipe for both venvs (the venv is the stamp's folder, $(@D)); recreated/updated when
+# requirements.txt, setup.py or setup.cfg change, the noble one also when its constraints do.
+$(NOBLE_PIP_STAMP): CONSTRAINTS := -c constraints-noble.txt
+$(NOBLE_PIP_STAMP): constraints-noble.txt
+$(PIP_STAMP) $(NOBLE_PIP_STAMP): requirements.txt setup.py setup.cfg
 	@command -v $(PYTHON) >/dev/null || { echo "$(PYTHON) not found (set PYTHON=...)" >&2; exit 1; }
-	@test -x $(VPY) || { echo "creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
-	$(VPY) -m pip install -q -r requirements.txt
-	$(VPY) -m pip install -q -e .
+	@test -x $(@D)/bin/python || { echo "creating $(@D) with $(PYTHON)"; $(PYTHON) -m venv $(@D); }
+	$(@D)/bin/python -m pip install -q -r requirements.txt $(CONSTRAINTS)
+	$(@D)/bin/python -m pip install -q -e . $(CONSTRAINTS)
 	@touch $@
 
-# tf2_msgs and ackermann_msgs have no PyPI wheels: built from interfaces/ with rosidl (~10 s),
-# again only when interfaces/ or the build script change, or the venv was updated.
-$(STAMP): $(PIP_STAMP) $(INTERFACE_FILES)
-	bash tools/build_interfaces.sh $(VENV)
+# tf2_msgs and ackermann_msgs have no PyPI wheels: built from interfaces/ with rosidl into each
+# venv, again only when interfaces/ or the build script change, or the venv was updated.
+$(STAMP): $(PIP_STAMP)
+$(NOBLE_STAMP): $(NOBLE_PIP_STAMP)
+$(STAMP) $(NOBLE_STAMP): $(INTERFACE_FILES)
+	bash tools/build_interfaces.sh $(@D)
 	@touch $@
 
 run: $(STAMP)
@@ -72,6 +84,11 @@ node: $(STAMP)
 test: $(STAMP)
 	$(VPY) -m pytest -q test
 
+# numba's disk cache of the kernels in the venv: each venv keeps its own compiled code (numba
+# drops a cache written by another numba version, so sharing would recompile on every switch).
+test-noble: $(NOBLE_STAMP)
+	NUMBA_CACHE_DIR=$(abspath $(NOBLE_VENV))/numba-cache $(NOBLE_VENV)/bin/python -m pytest -q test
+
 # --paths (not --base-paths): build exactly this package; a recursive crawl
 # would also find the package.xml files shipped inside $(VENV).
 colcon: $(STAMP)
@@ -83,7 +100,7 @@ colcon: $(STAMP)
 
 clean:
 	rm -rf build install log .pytest_cache *.egg-info
-	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+	find . \( -path ./$(VENV) -o -path ./$(NOBLE_VENV) \) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean
-	rm -rf $(VENV)
+	rm -rf $(VENV) $(NOBLE_VENV)

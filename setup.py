@@ -59,26 +59,32 @@ setup(
             ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ] + share_data_files(),
-    # Plain-Python runtime deps only. The ROS 2 wheels (ros-jazzy-rclpy,
-    # ros-jazzy-common-interfaces) are deliberately NOT listed: on a real ROS
-    # install rclpy and the message packages come from the ROS distro (apt),
-    # and pip must not pull a second, conflicting copy. See requirements.txt.
-    # Lower bounds are loose enough for Ubuntu 24.04 (ROS Jazzy) apt versions.
+    # The vendored ROS message definitions (bag/msg/README.md): bags written without a ROS install.
+    package_data={package_name + '.bag': ['msg/*/*.msg', 'msg/LICENSE', 'msg/README.md']},
+    # Plain-Python runtime deps only: `pip install .` alone runs mta run, check, analyze, replay
+    # --resimulate and the benchmarks that need no DDS (test/test_no_ros.py does so in a venv
+    # without ROS). The ROS 2 wheels (ros-jazzy-rclpy, ros-jazzy-common-interfaces) are
+    # deliberately NOT listed: on a real ROS install rclpy and the message packages come from the
+    # ROS distro (apt), and pip must not pull a second, conflicting copy. See requirements.txt.
+    # Lower bounds: Ubuntu 24.04's versions (the python3-* packages of a ROS Jazzy install), which
+    # `make test-noble` tests (constraints-noble.txt); `make test` tests current PyPI's.
     install_requires=[
-        'numpy>=1.24',
-        'scipy>=1.11',
+        'numpy>=1.26.4',
+        'scipy>=1.11.4',
         'pyyaml>=6.0',
         'mcap>=1.5',  # BagWriter.flush() needs mcap's Writer.flush(), new in 1.5
         'mcap-ros2-support>=0.5',
+        # The figures are what `mta analyze` (and so `mta session`, `make run`) is for, and
+        # package.xml makes python3-matplotlib a hard dependency of a ROS install too.
+        'matplotlib>=3.6.3',
     ],
-    # numba (the compiled tick, model/compiled.py) is an extra, not a hard requirement: the
+    # numba (the compiled kernels, model/kernel.py) is an extra, not a hard requirement: the
     # package runs without it (same results on the Python path, slower), numba's LLVM wheels are
     # large and lag new Python releases, and a failed numba install must not block installing
-    # the simulator. requirements.txt (the venv, CI) and package.xml (rosdep) do pull it in.
-    # Tested with 0.68.1; older versions untested.
+    # the simulator. requirements.txt (the venvs, CI) and package.xml (rosdep) do pull it in.
+    # Tested with 0.59.1 (make test-noble) and 0.68.1 (make test).
     extras_require={
-        'jit': ['numba>=0.59'],
-        'plot': ['matplotlib>=3.6'],
+        'jit': ['numba>=0.59.1'],
         'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56'],
     },
     zip_safe=True,

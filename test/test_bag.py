@@ -46,7 +46,8 @@ from mta_sim_ros.bag import (
     stamp,
     summary,
 )
-from mta_sim_ros.bag.schemas import SEPARATOR, share_dirs
+from mta_sim_ros.bag.schemas import SEPARATOR, share_dirs, vendored_dir
+from mta_sim_ros.topics import BAG_TOPICS
 
 from cdr_refs import assert_fields, rclpy_message
 
@@ -190,6 +191,25 @@ def test_definitions_match_rosbags_typestore(type_name):
     assert type_name in types
     for name, fielddefs in types.items():
         assert fielddefs == jazzy.fielddefs[name], name
+
+
+def test_vendored_definitions_are_the_installed_files_of_every_type_the_package_writes():
+    """bag/msg holds, byte for byte, the installed .msg file of each type the package writes into a
+    bag and of each type those nest (the MSG: blocks of their definitions), and nothing else: a
+    venv without ROS (test_no_ros.py) writes the schemas a ROS install writes."""
+    needed = set()
+    for type_name in set(BAG_TOPICS.values()):
+        needed.add(type_name.replace("/msg/", "/"))
+        needed.update(line[5:] for line in message_definition(type_name).splitlines() if line.startswith("MSG: "))
+    root = Path(str(vendored_dir()))
+    vendored = {f"{p.parent.name}/{p.stem}" for p in root.glob("*/*.msg")}
+    assert vendored == needed
+    for type_name in sorted(vendored):
+        pkg, name = type_name.split("/")
+        installed = [share / pkg / "msg" / f"{name}.msg" for share in share_dirs()]
+        installed = [path for path in installed if path.is_file()]
+        assert installed, f"{type_name}.msg is not installed here to compare with"
+        assert (root / pkg / f"{name}.msg").read_bytes() == installed[0].read_bytes(), type_name
 
 
 def test_field_type_resolution(fake_msgs):

@@ -333,6 +333,18 @@ def test_colcon_installs_every_module(colcon_install):
         f'not installed by colcon (missing __init__.py in a subpackage?): {missing}')
 
 
+def test_colcon_installs_the_vendored_message_definitions(colcon_install):
+    """bag/msg (the .msg files a bag is written with where no ROS share dir has them, their
+    LICENSE and README) is package data: installed beside the modules."""
+    src, install, proc = colcon_install
+    assert proc.returncode == 0, _output(proc)
+    site = next(install.glob(f'lib/python3*/site-packages/{PKG}'))
+    files = sorted(p.relative_to(src / PKG) for p in (src / PKG / 'bag' / 'msg').rglob('*') if p.is_file())
+    assert len(files) > 3, files
+    missing = [str(rel) for rel in files if not (site / rel).is_file()]
+    assert not missing, f'not installed by colcon (setup.py package_data): {missing}'
+
+
 def test_installed_mta_script_runs(colcon_install, tmp_path):
     """The generated launcher imports mta_sim_ros from the install space."""
     _, install, proc = colcon_install

@@ -5,7 +5,9 @@
   bags and the research commands import no ROS package.
 - No module imports another package's private names (``from x import _y``, ``x._y``), ours
   included, and none assigns to an attribute of something it imported (monkeypatching).
-- Where no ROS can be imported at all, ``mta check``, ``mta run`` and ``mta analyze`` run.
+- That the commands of the ROS-free rooms run where no ROS is installed at all is shown by
+  test_no_ros.py, in a venv without ROS (not by blocking imports here, where the ROS share
+  directories would still be read).
 """
 from __future__ import annotations
 
@@ -91,33 +93,3 @@ def test_the_scans_see_what_they_look_for():
                      "setattr(SimNode, 'x', 1)\nself_like = object()\nself_like.x = 1\n")
     assert private_imports(code) == ["mcap_ros2._dynamic", "loader._Loader"]
     assert len(patches(code)) == 3
-
-
-NO_ROS = """
-import importlib.abc, sys
-class NoRos(importlib.abc.MetaPathFinder):
-    def find_spec(self, name, path=None, target=None):
-        top = name.split(".")[0]
-        if top in ("rclpy", "rosidl_runtime_py", "ament_index_python") or top.endswith(("_msgs", "_srvs", "_interfaces")):
-            raise ImportError("no ROS here: " + name)
-sys.meta_path.insert(0, NoRos())
-from mta_sim_ros import cli
-sys.exit(cli.main(sys.argv[1:]))
-"""
-
-
-def test_the_research_commands_run_without_ros(tmp_path):
-    def mta(*args):
-        return subprocess.run([sys.executable, "-c", NO_ROS, *args], cwd=tmp_path, capture_output=True, text=True,
-                              timeout=600, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin",
-                                                "HOME": str(tmp_path), "MPLBACKEND": "Agg"})
-
-    scene = REPO / "config" / "scenes" / "lane_change.yaml"
-    done = mta("check", str(scene))
-    assert done.returncode == 0, done.stderr
-    bag = tmp_path / "run.mcap"
-    done = mta("run", "--scene", str(scene), "--bag", str(bag), "--quiet")
-    assert done.returncode == 0, done.stderr
-    done = mta("analyze", str(bag), "-o", str(tmp_path / "report"))
-    assert done.returncode == 0, done.stderr
-    assert any((tmp_path / "report").iterdir())

@@ -19,13 +19,17 @@ rosbag2's MCAP storage writes one Schema record per message type:
 
 This module rebuilds exactly that text from the ``.msg`` files installed under
 ``<prefix>/share/<pkg>/msg/``; it needs no rclpy, so it works both offline
-(``mcap`` wheels only) and inside the ROS node.
+(``mcap`` wheels only) and inside the ROS node. A type that no share directory has is read from
+the copies shipped in the package (``bag/msg/<pkg>/<Name>.msg``, the Jazzy files of every type the
+package writes, byte for byte): where no ROS is installed at all the bags get the same schemas,
+and a ROS install still reads its own files.
 """
 
 import functools
 import os
 import re
 import sys
+from importlib import resources
 from pathlib import Path
 
 #: Line that separates the nested definitions (80 '=' characters).
@@ -93,8 +97,15 @@ def share_dirs() -> list[Path]:
     return dirs
 
 
+def vendored_dir():
+    """The package's own copies of the Jazzy ``.msg`` files it writes, ``<pkg>/<Name>.msg``
+    (bag/msg/README.md): read only for a type that no share dir has."""
+    return resources.files(__package__) / "msg"
+
+
 def _read_msg_file(pkg: str, name: str, needed_by: str | None) -> str:
-    """Return the verbatim text of ``pkg/msg/Name.msg`` from the first share dir."""
+    """Return the verbatim text of ``pkg/msg/Name.msg`` from the first share dir, else from the
+    vendored copies."""
     searched = share_dirs()
     for share in searched:
         path = share / pkg / "msg" / f"{name}.msg"
@@ -102,11 +113,14 @@ def _read_msg_file(pkg: str, name: str, needed_by: str | None) -> str:
             # newline="" keeps the file byte-exact (no newline translation).
             with open(path, encoding="utf-8", newline="") as f:
                 return f.read()
+    vendored = vendored_dir() / pkg / f"{name}.msg"
+    if vendored.is_file():
+        return vendored.read_bytes().decode("utf-8")
     context = f" (needed by {needed_by})" if needed_by else ""
     raise MessageDefinitionNotFound(
         f"no message definition for {pkg}/msg/{name}{context}: "
         f"{pkg}/msg/{name}.msg not found under any of "
-        f"{', '.join(str(d) for d in searched)}")
+        f"{', '.join(str(d) for d in searched)}, nor among the package's own copies")
 
 
 def resolve_field_type(token: str, package: str) -> str | None:

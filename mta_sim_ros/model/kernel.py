@@ -29,7 +29,7 @@ governor's integral, or the kinematic level's ramp slope V').
 from __future__ import annotations
 
 import math
-from enum import IntEnum
+from collections import namedtuple
 from types import SimpleNamespace
 
 import numpy as np
@@ -41,13 +41,17 @@ from .jit import entry, jitable
 # -- the packed constants: each field declared once ------------------------------------------------
 
 class Fields:
-    """A block of P: (name, meaning, value from a context) per field. ``index`` is the IntEnum the
-    kernels read (``P[b + CART.index.mass]``), ``values(ctx)`` the numbers ``pack`` writes."""
+    """A block of P: (name, meaning, value from a context) per field. ``index`` is the named tuple
+    of offsets the kernels read (``P[b + CART.index.mass]``), ``values(ctx)`` the numbers ``pack``
+    writes. A named tuple of ints, not an IntEnum: numba compiles a global tuple's fields as
+    constants on every version, while numba 0.59 (Ubuntu 24.04's) cannot index an array by an
+    IntEnum member (0.68 can)."""
 
     def __init__(self, block: str, rows):
         self.block = block
         self.rows = tuple(rows)
-        self.index = IntEnum(block, [name for name, _, _ in self.rows], start=0)
+        names = [name for name, _, _ in self.rows]
+        self.index = namedtuple(block, names)(*range(len(names)))
         self.size = len(self.rows)
         self.meaning = {name: meaning for name, meaning, _ in self.rows}
 
@@ -127,7 +131,7 @@ def pack(train, law: str | None = None, traction=None) -> np.ndarray:
 
 def column(P: np.ndarray, name: str) -> tuple[float, ...]:
     """One CART field of every cart, read from the packed array (for the reference code)."""
-    n, i = int(P[H.n]), C[name]
+    n, i = int(P[H.n]), getattr(C, name)
     return tuple(float(P[HEAD_SIZE + CART_SIZE * k + i]) for k in range(n))
 
 

@@ -61,6 +61,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..bag import BagError, read_messages, read_metadata
+from ..compat import legend_below, trapezoid
 from ..model.steady import SteadyStateError, steady_circle
 from ..runlog import RECORD, recorded_scene_name, recorded_train
 from ..validate import EXIT_INPUT, InputError, output_folder
@@ -419,8 +420,8 @@ def energy_balance(data: BagData) -> dict | None:
     dt = np.diff(t)
     cumulative = np.concatenate([[0.0], np.cumsum(0.5 * dt * ((P - res_power)[1:] + (P - res_power)[:-1]))])
     running = cumulative - (T - T[0])  # the residual of the balance over [t_0, t_i]
-    W_N = float(np.trapezoid(P, t))
-    W_R = float(np.trapezoid(res_power, t))
+    W_N = float(trapezoid(P, t))
+    W_R = float(trapezoid(res_power, t))
     dT = float(T[-1] - T[0])
     residual = W_N - W_R - dT
     worst = int(np.argmax(np.abs(running)))
@@ -445,7 +446,7 @@ def summarize(data: BagData) -> dict:
     }
     if data.power is not None and len(data.power.t) > 1:
         P, tp = data.power.values, data.power.t
-        energy = float(np.trapezoid(P, tp))
+        energy = float(trapezoid(P, tp))
         out["power_kW"] = {"min": float(P.min()) / 1e3, "max": float(P.max()) / 1e3,
                            "mean": energy / float(tp[-1] - tp[0]) / 1e3}
         out["traction_energy_kWh"] = energy / 3.6e6
@@ -723,8 +724,8 @@ def plot_trajectory(datas: Sequence[BagData], path: Path) -> Path:
         who = "" if len(datas) == 1 else f" ({d.label})"
         handles.append(Line2D([], [], color="k", ls=sa, lw=1.3, label=f"$A_k$ front/hitch{who}"))
         handles.append(Line2D([], [], color="k", ls=sb, lw=1.0, label=f"$B_k$ rear axle{who}"))
-    fig.legend(handles=handles, fontsize=9, loc="outside lower center",
-               ncol=min(len(handles), 5) if len(datas) == 1 else 3, frameon=False)
+    legend_below(fig, ax, handles=handles, fontsize=9, ncol=min(len(handles), 5) if len(datas) == 1 else 3,
+                 frameon=False)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -750,8 +751,8 @@ def _time_plot(datas, path, what, ylabel, curves, extra=None) -> Path:
     ax.set_title(_title(datas, what), fontsize=10)
     handles, labels = ax.get_legend_handles_labels()
     if len(handles) > 4:  # below the axes, clear of the curves
-        fig.legend(handles, labels, fontsize=9, loc="outside lower center", ncol=min(len(datas), 3) if
-                   len(datas) > 1 else min(len(handles), 5), frameon=False)
+        legend_below(fig, ax, handles, labels, fontsize=9, ncol=min(len(datas), 3) if len(datas) > 1 else
+                     min(len(handles), 5), frameon=False)
     elif handles:
         ax.legend(fontsize=9, loc="best", framealpha=0.85)
     else:
@@ -778,7 +779,7 @@ def plot_power(datas, path) -> Path:
 
     def mean_line(ax, i, d):
         if d.power is not None and len(d.power.t) > 1:
-            mean = np.trapezoid(d.power.values, d.power.t) / (d.power.t[-1] - d.power.t[0]) / 1e3
+            mean = trapezoid(d.power.values, d.power.t) / (d.power.t[-1] - d.power.t[0]) / 1e3
             ax.axhline(mean, color=color(d), alpha=0.7, lw=0.9,
                        ls=STYLES[(i + 2) % len(STYLES)] if len(datas) > 1 else ":",
                        label=_label(datas, d, f"mean {mean:.1f} kW"))
