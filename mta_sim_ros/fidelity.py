@@ -13,6 +13,7 @@ measurements they were checked against (``mta bench fidelity``).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -105,20 +106,26 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
         front, rear = no_slip_tyre_forces(model, y, command, v_set)
         return max([abs(front) / model.front_stiffness] + list(np.abs(rear) / model.stiffness))
 
-    for t in ts:
-        psi = float(np.clip(np.interp(t, scene.steering.time, scene.steering.value),
-                            -tr.actuator.max_angle, tr.actuator.max_angle))
-        v = _speed_at(scene, t)
+    psis = np.clip(np.interp(ts, scene.steering.time, scene.steering.value), -tr.actuator.max_angle,
+                   tr.actuator.max_angle)
+    speeds = _speeds_at(scene, ts)
+    seen: dict = {}  # (psi, V) -> alpha: a scene holds its inputs for long stretches
+    for psi, v in zip(psis.tolist(), speeds.tolist()):
         vs.append(v)
+        if (psi, v) in seen:
+            alphas.append(seen[psi, v])
+            continue
         y = np.zeros(L.size)
         y[L.steering], y[L.speed] = psi, v
         try:
             hitch = steady_circle(tr, psi).hitch_angles if abs(psi) > STRAIGHT else (0.0,) * (tr.n - 1)
         except SteadyStateError:
+            seen[psi, v] = math.inf
             alphas.append(math.inf)
             continue
         y[L.heading] = np.concatenate(([0.0], -np.cumsum(hitch)))
-        alphas.append(largest(y, psi, v))
+        seen[psi, v] = largest(y, psi, v)
+        alphas.append(seen[psi, v])
     ini = scene.initial
     y = np.zeros(L.size)
     y[L.steering], y[L.speed] = ini.steering, ini.speed
@@ -128,11 +135,16 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
 
 
 def _speed_at(scene: Scene, t: float) -> float:
+    return float(_speeds_at(scene, np.array([t]))[0])
+
+
+def _speeds_at(scene: Scene, t: np.ndarray) -> np.ndarray:
+    """The speed set-point at the times t (the scene's table, else the traction law's speed)."""
     if scene.speed is not None:
-        return float(np.interp(t, scene.speed.time, scene.speed.value))
+        return np.interp(t, scene.speed.time, scene.speed.value)
     if scene.train.traction.law == "constant":
-        return scene.initial.speed
-    return scene.train.traction.set_speed
+        return np.full(t.shape, scene.initial.speed)
+    return np.full(t.shape, scene.train.traction.set_speed)
 
 
 def scene_inputs(scene: Scene) -> SceneInputs:
@@ -142,7 +154,7 @@ def scene_inputs(scene: Scene) -> SceneInputs:
     psi = np.clip(np.interp(t, scene.steering.time, scene.steering.value), -tr.actuator.max_angle, tr.actuator.max_angle)
     a_lat = v * v * np.abs(np.tan(psi)) / tr.carts[0].length
     fine = np.arange(0.0, scene.duration + 0.005, 0.01)
-    v_fine = np.array([_speed_at(scene, x) for x in fine])
+    v_fine = _speeds_at(scene, fine)
     accel = np.abs(np.diff(v_fine)) / 0.01 if len(fine) > 1 else np.zeros(1)
     train_length = sum(c.length + max(c.hitch_offset, 0.0) for c in tr.carts)
     # The steady slip angle over the distance run, plus the start's bent hitches straightening over
@@ -221,7 +233,7 @@ def choose(scene: Scene, forced: str | None = None) -> Choice:
     if scene.needs is None:
         return Choice("dynamic", "dynamic: auto, and the scene states no needs: the article's model")
     needs = scene.needs.asked()
-    est = estimate(scene)
+    est = _estimate_cached(scene)
     for level in LEVELS:
         over = [f"{k} {est[level][k]:.3g} > {tol:g}" for k, tol in needs.items() if not est[level][k] <= tol]
         if not over:
@@ -230,6 +242,22 @@ def choose(scene: Scene, forced: str | None = None) -> Choice:
             why_not = "; ".join(f"{lv} misses ({_misses(est[lv], needs)})" for lv in cheaper)
             return Choice(level, f"{level}: auto, predicted errors {met}" + (f"; {why_not}" if why_not else ""), est)
     return Choice("slip", "slip: auto, the highest level (no level's predicted error meets every need)", est)
+
+
+#: estimates kept per train and scene (a reset, a resumed sweep, the same scheme on another core)
+_ESTIMATES: dict[str, dict] = {}
+_ESTIMATES_KEPT = 256
+
+
+def _estimate_cached(scene: Scene) -> dict:
+    """``estimate`` of a scene, kept by the scene's full text (its train, tables and raw fields: two
+    scenes with the same text have the same estimates); the oldest dropped past _ESTIMATES_KEPT."""
+    key = repr(dataclasses.replace(scene, source=""))
+    if key not in _ESTIMATES:
+        if len(_ESTIMATES) >= _ESTIMATES_KEPT:
+            _ESTIMATES.pop(next(iter(_ESTIMATES)))
+        _ESTIMATES[key] = estimate(scene)
+    return _ESTIMATES[key]
 
 
 def _misses(est: dict, needs: dict) -> str:

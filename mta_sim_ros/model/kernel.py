@@ -201,8 +201,8 @@ def wrap_angle(a):
 # -- the equations -----------------------------------------------------------------------------------
 
 #: columns of ``rec`` (rhs's record of each cart's chain factors, for the outputs)
-KAPT, KAPB, KAPC, PSI, RES = range(5)
-REC = 5
+KAPT, KAPB, KAPC, PSI, RES, KAPT_DOT, KAPB_DOT = range(7)
+REC = 7
 
 
 @jitable
@@ -266,6 +266,7 @@ def rhs(P, y, command, v_set, dy, rec, mode):
             generalized_resistance += resistance * b_val
             if rec.shape[0]:
                 rec[k, KAPC], rec[k, RES] = kc_val, resistance
+                rec[k, KAPT_DOT], rec[k, KAPB_DOT] = t_dot, k_dot * c + k_val * c_dot
         if rec.shape[0]:
             rec[k, KAPT], rec[k, KAPB], rec[k, PSI] = t_val, b_val, p_val
         dy[2 + k] = theta_rate
@@ -369,9 +370,10 @@ def clear(P, y):
     return margin(P, y)[0] > GUARD_SLACK
 
 
-#: per-cart output columns after the REC ones: A, B, C (x, y), hitch angle phi_k, s'_Ck, s'_Bk, th'_k
-AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT = range(REC, REC + 10)
-OUT = REC + 10
+#: per-cart output columns after the REC ones: A, B, C (x, y), hitch angle phi_k, s'_Ck, s'_Bk, th'_k,
+#: the drawbar pull at A_k (``drawbar_pulls``)
+AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT, PULL = range(REC, REC + 11)
+OUT = REC + 11
 #: scalar outputs
 REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN = range(6)
 SCALARS = 6
@@ -408,7 +410,45 @@ def outputs(P, y, command, v_set, cart, sc, dy):
             cart[k, PHI] = 0.0
     sc[REAR_X], sc[REAR_Y] = ax, ay
     sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
+    drawbar_pulls(P, y, dy[n + 3], cart)
     return traction
+
+
+@jitable
+def drawbar_pulls(P, y, acceleration, cart):
+    """The pull at each hitch A_k (k >= 2) along the towed cart's axis e_k, N, into cart[k, PULL]:
+    the constraint force of the model, by Newton-Euler on each towed cart from the last forward.
+    Cart k (unit axis e_k, normal n_k, th_k) carries the hitch force H_k at A_k, -H_{k+1} at A_{k+1},
+    the resistance -F_Bk e_k and the tyres' lateral force N_k n_k at B_k. With the centre of mass
+    C_k = B_k + c_k e_k, its acceleration a_e = d(s'_Bk)/dt - c_k th'_k^2, a_n = s'_Bk th'_k + c_k th''_k,
+    where d(s'_Bk)/dt = kapB' V + kapB V' and th''_k = kapT' V + kapT V' (the chain's rates, ``rhs``):
+
+        H_k . e_k = H_{k+1} . e_k + F_Bk + m_k a_e                          (Newton along e_k)
+        H_k . n_k = (J_k th''_k + c_k m_k a_n - a_k H_{k+1} . n_k) / l_k   (Euler about C_k, N_k eliminated)
+
+    ``cart`` holds the REC and VB, VT columns of ``outputs``; cart[0, PULL] is left 0 (the traction
+    at A_1 is ``outputs``' own). On a straight line at constant speed the pull at A_k is the sum of
+    the resistances behind it (test_sweep_metrics)."""
+    n = int(P[H.n])
+    V = y[n + 3]
+    hx, hy = 0.0, 0.0  # H_{k+1}, world frame
+    for k in range(n - 1, 0, -1):
+        b = HEAD_SIZE + CART_SIZE * k
+        th = y[2 + k]
+        ex, ey = math.cos(th), math.sin(th)
+        nx, ny = -ey, ex
+        com = P[b + C.com_offset]
+        m = P[b + C.mass]
+        rate = cart[k, VT]
+        rate_dot = cart[k, KAPT_DOT] * V + cart[k, KAPT] * acceleration
+        speed_dot = cart[k, KAPB_DOT] * V + cart[k, KAPB] * acceleration
+        a_e = speed_dot - com * rate * rate
+        a_n = cart[k, VB] * rate + com * rate_dot
+        h_e = hx * ex + hy * ey + cart[k, RES] + m * a_e
+        h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * (hx * nx + hy * ny)) / P[b + C.length]
+        cart[k, PULL] = h_e
+        hx, hy = h_e * ex + h_n * nx, h_e * ey + h_n * ny
+    cart[0, PULL] = 0.0
 
 
 # -- where the right-hand side is not smooth ----------------------------------------------------------
@@ -794,4 +834,108 @@ def release_of(P, psi1, command):
     return actuator_release(P, psi1, command)
 
 
-ENTRIES = (rhs_of, tick, outputs_of, margin_of, switches_of, release_of)
+# -- a whole run in one call (a sweep's runs, ``batch.py``) --------------------------------------------
+
+#: columns of a run's trace row: the scalars, then TRACE_CART per cart
+TR_TRACTION, TR_SPEED, TR_MARGIN, TR_STEERING = range(4)
+TRACE_HEAD = 4
+TR_BX, TR_BY, TR_HEADING, TR_PHI, TR_PULL = range(5)
+TRACE_CART = 5
+
+
+@jitable
+def trace_row(P, y, command, law_input, cart, sc, dy, row):
+    """The outputs of a run's trace at state y into ``row`` (TRACE_HEAD + TRACE_CART n)."""
+    n = int(P[H.n])
+    outputs(P, y, command, law_input, cart, sc, dy)
+    row[TR_TRACTION], row[TR_SPEED], row[TR_MARGIN], row[TR_STEERING] = sc[TRACTION], y[n + 3], sc[MARGIN], y[n + 2]
+    for k in range(n):
+        j = TRACE_HEAD + TRACE_CART * k
+        row[j + TR_BX], row[j + TR_BY], row[j + TR_HEADING] = cart[k, BX], cart[k, BY], y[2 + k]
+        row[j + TR_PHI], row[j + TR_PULL] = cart[k, PHI], cart[k, PULL]
+
+
+@entry
+def trace_of(P_out, y, command, law_input):
+    """One trace row (``trace_row``) as a new array: a run's row 0."""
+    n = int(P_out[H.n])
+    row = np.empty(TRACE_HEAD + TRACE_CART * n)
+    trace_row(P_out, y, command, law_input, np.empty((n, OUT)), np.empty(SCALARS), np.empty(y.shape[0]), row)
+    return row
+
+
+@entry
+def run(P, P_out, T, y0, commands, v_sets, tick, max_step, split, start, trace):
+    """Ticks start, start + 1, ... of a run, tick i from t = i tick holding commands[i] and v_sets[i],
+    as ``Simulation.advance`` runs them (the kinematic level's speed ramp set at each tick's start,
+    ``kinematic.begin_tick``); after tick i the outputs of P_out into trace[i + 1] (``trace_row``;
+    the kinematic level reports its inverse dynamics under V + V'). Stops after the first tick whose
+    state is not ``clear`` (the caller's guards.check_state decides) or after the last. Returns
+    (y, ticks done, right-hand sides evaluated, kinks split at)."""
+    n = int(P[H.n])
+    kinematic = int(P[H.law]) == KINEMATIC
+    cart = np.empty((n, OUT))
+    sc = np.empty(SCALARS)
+    dy = np.empty(y0.shape[0])
+    y = y0.copy()
+    nfev = 0
+    kinks = 0
+    for i in range(start, commands.shape[0]):
+        t0 = i * tick
+        if kinematic:
+            y[n + 4] = (v_sets[i] - y[n + 3]) / tick
+        y, used, split_at = advance(model_rhs, switches, P, T, y, commands[i], v_sets[i], t0, t0 + tick, max_step,
+                                    split)
+        nfev += used
+        kinks += split_at
+        law_input = y[n + 3] + y[n + 4] if kinematic else v_sets[i]
+        trace_row(P_out, y, commands[i], law_input, cart, sc, dy, trace[i + 1])
+        if not clear(P, y):
+            return y, i + 1, nfev, kinks
+    return y, commands.shape[0], nfev, kinks
+
+
+@entry
+def path_offsets(px, py, qx, qy):
+    """Signed distance of each point q_i from the polyline p (left of its direction > 0), m.
+
+    The points are taken in order, each searched from the segment nearest the point before: walking
+    on while the next segment is nearer (a point that moves along the path, as a cart's corner does
+    along the tractor's path, finds its nearest segment; a path that comes back near itself is not
+    mistaken for it). A point beyond either end is measured from the end segment's line."""
+    m = px.shape[0]
+    out = np.empty(qx.shape[0])
+    if m < 2:
+        for i in range(qx.shape[0]):
+            out[i] = math.hypot(qx[i] - px[0], qy[i] - py[0]) if m else math.nan
+        return out
+    j = 0
+    for i in range(qx.shape[0]):
+        best, side = _segment_distance(px, py, j, qx[i], qy[i])
+        while j + 2 < m:
+            d, s = _segment_distance(px, py, j + 1, qx[i], qy[i])
+            if d > best:
+                break
+            best, side, j = d, s, j + 1
+        out[i] = best if side >= 0.0 else -best
+    return out
+
+
+@jitable
+def _segment_distance(px, py, j, x, y):
+    """(distance from (x, y) to the segment j of the polyline, its side: cross product's sign);
+    the first and last segments are extended to lines beyond their ends."""
+    ax, ay = px[j], py[j]
+    dx, dy = px[j + 1] - ax, py[j + 1] - ay
+    length2 = dx * dx + dy * dy
+    u = ((x - ax) * dx + (y - ay) * dy) / length2 if length2 > 0.0 else 0.0
+    if u > 1.0 and j + 2 < px.shape[0]:
+        u = 1.0
+    if u < 0.0 and j > 0:
+        u = 0.0
+    cx, cy = ax + u * dx, ay + u * dy
+    cross = dx * (y - ay) - dy * (x - ax)
+    return math.hypot(x - cx, y - cy), cross
+
+
+ENTRIES = (rhs_of, tick, outputs_of, margin_of, switches_of, release_of, trace_of, run, path_offsets)

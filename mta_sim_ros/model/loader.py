@@ -411,6 +411,27 @@ def load_train(path: Union[str, os.PathLike]) -> spec.Train:
     return _train(*_read(path))
 
 
+def train_from_data(data: dict, source: str) -> spec.Train:
+    """Check a train given as the mapping a train file reads to (a sweep's scheme: the base file
+    with fields changed); ``source`` names it in messages."""
+    return _train(data, source)
+
+
+def scene_from_data(data: dict, source: str, train: spec.Train) -> spec.Scene:
+    """Check a scene given as the mapping a scene file reads to, run with ``train`` (whatever its
+    ``train:`` names)."""
+    return _scene(data, source, train)
+
+
+def read_yaml_mapping(path: Union[str, os.PathLike]) -> dict:
+    """The top-level mapping of a train or scene file, bounded (validate.py), faults as SpecError."""
+    return _read(path)[0]
+
+
+#: the reader of one YAML mapping, field by field (for the readers of other files: sweep specs)
+Section = _Section
+
+
 def load_train_text(text: str, source: str) -> spec.Train:
     """Check a train given as YAML text (e.g. as a bag recorded it); ``source`` names it in
     messages."""

@@ -1,0 +1,301 @@
+"""Running a sweep: schemes in batches, serially or on Dask, into resumable Parquet parts.
+
+Each task runs one batch of schemes, every scene of each (``run_schemes``: a pure function of the
+spec and the schemes, so a batch gives the same rows wherever it runs: serially, on the embedded
+LocalCluster, on a cluster). The client writes each finished batch as a Parquet part
+(``ResultStore``: temp file + rename, so a part is whole or absent) as it arrives; a re-run of the
+same spec into the same folder runs only the schemes no part holds. A worker that dies loses the
+batch it was running and Dask runs that batch again elsewhere (its ``allowed-failures``); the
+client's death loses the batches in flight, never a part already written.
+
+Engine: ``workers`` processes of one thread each on an embedded ``distributed.LocalCluster`` bound
+to 127.0.0.1 (no dashboard), by default one per core; or the cluster of ``scheduler`` (an address)
+or ``scheduler_file``. Each worker compiles (or loads from numba's disk cache) the kernels once,
+at start (``warm_up``), not per run.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from .. import __version__
+from ..batch import OK, metric_names, run_metrics
+from ..integrate import IntegrationError
+from ..model.guards import ModelValidityError
+from ..validate import InputError, fail, show
+from . import spec as sweep_spec
+
+#: verdicts besides batch.OK and batch.STOPPED
+DROPPED, REFUSED = "dropped", "refused"
+RESULTS, CSV, PARTS, SPEC_COPY = "results.parquet", "results.csv", "parts", "spec.yaml"
+
+
+def columns(spec) -> list[tuple[str, str]]:
+    """(name, kind) of every column of a sweep's rows, in order; kind: int, float, str."""
+    out = [("run", "int"), ("scheme", "int"), ("scene", "str")]
+    out += [(f.name, "float" if f.kind == "number" else "str") for f in spec.factors]
+    out += [("train_hash", "str"), ("verdict", "str"), ("reason", "str"), ("level", "str"), ("simulated_s", "float")]
+    out += [(m, "float") for m in metric_names(max_carts(spec))]
+    out += [("version", "str"), ("seed", "int")]
+    return out
+
+
+def max_carts(spec) -> int:
+    trains = [spec.train_data] + [data for data, _ in spec.train_files.values()]
+    return max(len(t.get("carts", [])) for t in trains)
+
+
+def train_hash(train) -> str:
+    """The resolved train (every number after loading, names, force lists), not its file: sha256, 16 hex."""
+    return hashlib.sha256(repr(replace(train, source="")).encode()).hexdigest()[:16]
+
+
+def run_schemes(spec, schemes: list[tuple[int, tuple]]) -> list[dict]:
+    """The rows of the given (index, scheme) pairs, every scene of each, in order."""
+    rows = []
+    names = metric_names(max_carts(spec))
+    scenes = spec.scene_names
+    fidelity = None if spec.fidelity == "auto" else spec.fidelity
+    for index, scheme in schemes:
+        base = {"scheme": index, **sweep_spec.scheme_label(spec, scheme), "version": __version__, "seed": spec.seed}
+        try:
+            train, built = sweep_spec.build(spec, scheme)
+        except InputError as err:
+            rows += [_row(base, index, j, scenes, names, REFUSED, str(err)) for j in range(len(scenes))]
+            continue
+        base["train_hash"] = train_hash(train)
+        broken = "; ".join(filter(None, (c.broken(train) for c in spec.constraints)))
+        if broken:
+            rows += [_row(base, index, j, scenes, names, DROPPED, broken) for j in range(len(scenes))]
+            continue
+        for j, scene in enumerate(built):
+            try:
+                result = run_metrics(scene, fidelity=fidelity)
+            except (InputError, ModelValidityError, IntegrationError, ValueError) as err:
+                rows.append(_row(base, index, j, scenes, names, REFUSED, str(err)))
+                continue
+            row = _row(base, index, j, scenes, names, result.verdict, result.reason)
+            row.update(level=result.level, simulated_s=result.simulated, **result.metrics)
+            rows.append(row)
+    return rows
+
+
+def _row(base: dict, index: int, j: int, scenes: list, names: list, verdict: str, reason: str) -> dict:
+    row = {"run": index * len(scenes) + j, "scene": scenes[j], **base, "verdict": verdict, "reason": reason,
+           "level": "", "simulated_s": 0.0}
+    row.setdefault("train_hash", "")
+    for name in names:
+        row[name] = math.nan
+    return row
+
+
+def warm_up() -> str:
+    """Compile (or load from numba's cache) the kernels in this process: a short run of the
+    default train. Returns what runs (``Simulation.compiled_note``)."""
+    from ..config import resolve_config_path
+    from ..model.loader import load_scene
+    from ..sim import Simulation
+
+    scene = load_scene(resolve_config_path("scenes/straight_pass.yaml"))
+    scene = replace(scene, duration=0.1)
+    run_metrics(scene, fidelity="dynamic")
+    return Simulation(scene, fidelity="dynamic").compiled_note
+
+
+# -- the results ---------------------------------------------------------------------------------
+
+class ResultStore:
+    """A sweep's folder: the spec it ran (``spec.yaml``), one Parquet part per finished batch
+    (``parts/``), and at the end ``results.parquet`` and ``results.csv`` (every row, by run)."""
+
+    def __init__(self, folder: str | os.PathLike, spec):
+        import pyarrow as pa
+
+        self.folder = Path(folder)
+        self.spec = spec
+        self.columns = columns(spec)
+        kinds = {"int": pa.int64(), "float": pa.float64(), "str": pa.string()}
+        self.schema = pa.schema([(name, kinds[kind]) for name, kind in self.columns])
+        self.parts = self.folder / PARTS
+        copy = self.folder / SPEC_COPY
+        if copy.exists():
+            if copy.read_text(encoding="utf-8", errors="replace") != spec.text:
+                fail("--out", show(str(self.folder)), f"a folder of results of this spec, or a new one: its "
+                     f"{SPEC_COPY} is another spec (resuming runs only what the same spec has left)")
+        else:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            _write_atomic(copy, spec.text.encode())
+        self.parts.mkdir(exist_ok=True)
+
+    def done(self) -> set[int]:
+        """The schemes some part holds (all their scenes: a part holds whole schemes)."""
+        import pyarrow.parquet as pq
+
+        out: set[int] = set()
+        for part in sorted(self.parts.glob("part-*.parquet")):
+            out.update(pq.read_table(part, columns=["scheme"]).column(0).to_pylist())
+        return out
+
+    def write(self, rows: list[dict]) -> Path:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        first, last = rows[0]["run"], rows[-1]["run"]
+        path = self.parts / f"part-{first:09d}-{last:09d}.parquet"
+        table = pa.Table.from_pylist([{name: row.get(name) for name, _ in self.columns} for row in rows],
+                                     schema=self.schema)
+        temp = path.with_suffix(".tmp")
+        pq.write_table(table, temp)
+        os.replace(temp, path)
+        return path
+
+    def finish(self) -> tuple[Path, Path, int]:
+        """results.parquet and results.csv of every part, sorted by run; (paths, rows)."""
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+        import pyarrow.parquet as pq
+
+        parts = sorted(self.parts.glob("part-*.parquet"))
+        tables = [pq.read_table(p, schema=self.schema) for p in parts]
+        table = pa.concat_tables(tables) if tables else self.schema.empty_table()
+        table = table.sort_by("run")
+        results, csv = self.folder / RESULTS, self.folder / CSV
+        temp = results.with_suffix(".tmp")
+        pq.write_table(table, temp)
+        os.replace(temp, results)
+        temp = csv.with_suffix(".tmp")
+        pcsv.write_csv(table, temp)
+        os.replace(temp, csv)
+        return results, csv, table.num_rows
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    temp = path.with_suffix(path.suffix + ".tmp")
+    temp.write_bytes(data)
+    os.replace(temp, path)
+
+
+# -- progress ------------------------------------------------------------------------------------------
+
+class Progress:
+    """Runs done, runs per second and time left: one line rewritten on a terminal, else a line
+    every 10 % (nothing when ``quiet``)."""
+
+    def __init__(self, total: int, quiet: bool = False, stream=sys.stderr):
+        self.total, self.done, self.quiet, self.stream = total, 0, quiet, stream
+        self.t0 = time.monotonic()
+        self.tty = stream.isatty()
+        self._said = -1
+
+    def add(self, runs: int) -> None:
+        self.done += runs
+        if self.quiet:
+            return
+        elapsed = time.monotonic() - self.t0
+        rate = self.done / elapsed if elapsed > 0 else 0.0
+        left = (self.total - self.done) / rate if rate > 0 else math.inf
+        line = (f"runs {self.done}/{self.total} ({100.0 * self.done / max(self.total, 1):.1f} %), "
+                f"{rate:.1f} runs/s, {_clock(left)} left")
+        if self.tty:
+            self.stream.write("\r" + line + " " * 4)
+            self.stream.flush()
+        elif int(10 * self.done / max(self.total, 1)) > self._said:
+            self._said = int(10 * self.done / max(self.total, 1))
+            print(line, file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.tty and not self.quiet:
+            self.stream.write("\n")
+
+
+def _clock(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "?"
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
+
+
+# -- the engine ------------------------------------------------------------------------------------------
+
+@dataclass
+class SweepRun:
+    """What a sweep did: schemes and runs in all, run now, already there; rows written; the engine."""
+
+    schemes: int
+    runs: int
+    ran: int
+    resumed: int
+    rows: int
+    engine: str
+    wall: float
+    results: Path
+    csv: Path
+
+
+def batches(todo: list[tuple[int, tuple]], runs_per_task: int, scenes: int) -> list[list[tuple[int, tuple]]]:
+    size = max(1, runs_per_task // max(scenes, 1))
+    return [todo[i:i + size] for i in range(0, len(todo), size)]
+
+
+def run_sweep(spec, out: str | os.PathLike, workers: int | None = None, scheduler: str | None = None,
+              scheduler_file: str | None = None, serial: bool = False, quiet: bool = False) -> SweepRun:
+    """Run every scheme of ``spec`` not yet in ``out`` (module docstring) and write the results."""
+    store = ResultStore(out, spec)
+    all_schemes = sweep_spec.schemes(spec)
+    done = store.done()
+    todo = [(i, s) for i, s in enumerate(all_schemes) if i not in done]
+    scenes = len(spec.scenes)
+    tasks = batches(todo, spec.batch, scenes)
+    progress = Progress(len(todo) * scenes, quiet)
+    t0 = time.monotonic()
+    if serial or not tasks:
+        engine = "serial (this process)"
+        for task in tasks:
+            store.write(run_schemes(spec, task))
+            progress.add(len(task) * scenes)
+    else:
+        with _client(workers, scheduler, scheduler_file) as (client, engine):
+            from distributed import as_completed
+
+            client.run(warm_up)
+            shared = client.scatter(spec, broadcast=True)
+            futures = [client.submit(run_schemes, shared, task, pure=False) for task in tasks]
+            for future in as_completed(futures):
+                rows = future.result()
+                store.write(rows)
+                progress.add(len(rows))
+                future.release()
+    progress.close()
+    results, csv, rows = store.finish()
+    return SweepRun(len(all_schemes), len(all_schemes) * scenes, len(todo) * scenes, len(done) * scenes, rows,
+                    engine, time.monotonic() - t0, results, csv)
+
+
+@contextlib.contextmanager
+def _client(workers: int | None, scheduler: str | None, scheduler_file: str | None):
+    """(a distributed Client, what it is): the cluster named, or an embedded LocalCluster."""
+    from distributed import Client, LocalCluster
+
+    if scheduler or scheduler_file:
+        with Client(address=scheduler, scheduler_file=scheduler_file, timeout="30s") as client:
+            count = len(client.scheduler_info(n_workers=-1)["workers"]) if _takes_n_workers(client) else \
+                len(client.scheduler_info()["workers"])
+            yield client, f"Dask cluster at {client.scheduler.address} ({count} workers)"
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        yield client, f"Dask LocalCluster, {n} worker processes of 1 thread on 127.0.0.1"
+
+
+def _takes_n_workers(client) -> bool:
+    import inspect
+
+    return "n_workers" in inspect.signature(client.scheduler_info).parameters
