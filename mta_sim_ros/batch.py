@@ -15,13 +15,17 @@ Metrics (``METRICS`` names them with their units; per hitch k = 2..n and per car
                                               its widest draft (``markers.cart_widths``) along the
                                               path of its axle B_k; the draft acts the whole run
     largest hitch angle, smallest jackknife margin
-    off-tracking of cart k                    the largest distance of B_k from the tractor's axle
-                                              path (B_1's polyline, ``kernel.path_offsets``)
+    off-tracking of cart k                    the largest distance of B_k(t) from the polyline the
+                                              tractor's axle B_1 traced up to t, samples whose
+                                              nearest point is an end left out: analyze.py's
+                                              definition (``kernel.path_offsets``, growing)
     swept width                               the width of the envelope the outlines sweep, across
                                               the tractor's path: largest left minus largest right
                                               signed distance of every cart's box corners and
                                               axle ends (urdf.box_of: the boxes RViz draws) from
-                                              B_1's path
+                                              B_1's whole path, samples beside it (not beyond an
+                                              end). In a steady turn: the outermost corner's
+                                              radius minus the innermost axle end's
     headland width                            how far the outlines reach along the initial heading
                                               beyond the tractor's front axle A_1 at the first tick
                                               the scene steers (NaN: it never steers)
@@ -102,6 +106,7 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
                 check_state(model, sim.t, y)
             except ModelValidityError as err:  # the failing tick is not part of the run (as in run_scene)
                 trace[done] = np.nan
+                sim.ticks = done - 1
                 return sim, trace, commands, done - 1, err
     return sim, trace, commands, done, None
 
@@ -187,27 +192,31 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         centre, length, width, _ = box_of(train, k)
         for along in (centre + length / 2, centre - length / 2, 0.0):  # front and rear corners, the axle's ends
             for across in (width / 2, -width / 2):
-                qx = bx[:, k] + along * ex - across * ey
-                qy = by[:, k] + along * ey + across * ex
-                d = offsets(path_x, path_y, np.ascontiguousarray(qx), np.ascontiguousarray(qy))
-                left, right = max(left, float(d.max())), min(right, float(d.min()))
+                qx = np.ascontiguousarray(bx[:, k] + along * ex - across * ey)
+                qy = np.ascontiguousarray(by[:, k] + along * ey + across * ex)
+                d, at_end = offsets(path_x, path_y, qx, qy, False)
+                beside = d[~at_end]
+                if beside.size:
+                    left, right = max(left, float(beside.max())), min(right, float(beside.min()))
                 if start >= 0:
                     reach = max(reach, float(((qx - a1[0]) * e0[0] + (qy - a1[1]) * e0[1])[start:].max()))
-    out["swept_width_m"] = left - right
+    out["swept_width_m"] = left - right if right < math.inf else math.nan
     out["headland_width_m"] = reach if start >= 0 else math.nan
-    largest_angle, largest_offtrack = 0.0, 0.0
+    largest_angle, offtracks = 0.0, []
     for k in range(1, n):
         phi = math.degrees(float(np.max(np.abs(cart[:, k, kernel.TR_PHI]))))
         pull = cart[:, k, kernel.TR_PULL]
-        off = float(np.max(np.abs(offsets(path_x, path_y, np.ascontiguousarray(bx[:, k]),
-                                          np.ascontiguousarray(by[:, k])))))
+        d, at_end = offsets(path_x, path_y, np.ascontiguousarray(bx[:, k]), np.ascontiguousarray(by[:, k]), True)
+        beside = np.abs(d[~at_end])
+        off = float(beside.max()) if beside.size else math.nan
         out[f"hitch{k + 1}_max_angle_deg"] = phi
         out[f"hitch{k + 1}_mean_pull_kN"] = float(np.mean(pull)) / 1e3
         out[f"hitch{k + 1}_max_pull_kN"] = float(np.max(pull)) / 1e3
         out[f"cart{k + 1}_offtracking_m"] = off
-        largest_angle, largest_offtrack = max(largest_angle, phi), max(largest_offtrack, off)
+        largest_angle = max(largest_angle, phi)
+        offtracks += [off] if math.isfinite(off) else []
     out["max_hitch_angle_deg"] = largest_angle if n > 1 else math.nan
-    out["max_offtracking_m"] = largest_offtrack if n > 1 else math.nan
+    out["max_offtracking_m"] = max(offtracks, default=math.nan)  # NaN: no axle was ever beside the path
     return {name: out[name] for name in metric_names(n)}
 
 

@@ -253,6 +253,14 @@ def _factors(top, spec: Spec) -> list:
             s.fail("path", f.name, "varied once (it is already a factor)")
         names.add(f.name)
         factors.append(f)
+    order = next((i for i, f in enumerate(factors) if f.kind == "order"), None)
+    if order is not None:
+        n = len(spec.train_data["carts"])
+        for rel, (data, _) in spec.train_files.items():
+            if len(data.get("carts", [])) != n:
+                validate.fail(f"vary[{order}].order", "carts", f"used with trains of one length: {rel} has "
+                              f"{len(data.get('carts', []))} carts, the base train {n}", "top level", spec.source,
+                              SweepSpecError)
     return factors
 
 
@@ -418,6 +426,37 @@ def scheme_data(spec: Spec, scheme: tuple) -> tuple[dict, str, list]:
         for data in [train] if f.target == "train" else [d for _, d, _ in scenes]:
             _set(data, f.parts, new)
     return train, source, scenes
+
+
+def write_scheme(spec: Spec, scheme: tuple, train_path, scenes_folder=None) -> list:
+    """Write a scheme's train file at ``train_path`` (YAML that ``mta run``, ``mta session`` and the
+    node take as they are) and, into ``scenes_folder`` if given, each scene's file, its ``train:``
+    naming that train file. Returns the scene files written (in the spec's order)."""
+    from pathlib import Path
+
+    train_data, _, scenes = scheme_data(spec, scheme)
+    train_path = Path(train_path)
+    train_path.parent.mkdir(parents=True, exist_ok=True)
+    head = "".join(f"#   {k}: {v}\n" for k, v in scheme_label(spec, scheme).items())
+    _write_yaml(train_path, f"# scheme of sweep {spec.name!r} ({spec.source}):\n{head}", train_data)
+    written = []
+    if scenes_folder is not None:
+        folder = Path(scenes_folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, data, _ in scenes:
+            path = folder / f"{name}.yaml"
+            data["train"] = os.path.relpath(train_path.resolve(), folder.resolve())
+            _write_yaml(path, f"# scene {name!r} of sweep {spec.name!r}, with the scheme's train\n", data)
+            written.append(path)
+    return written
+
+
+def _write_yaml(path, header: str, data) -> None:
+    import yaml
+
+    temp = path.with_name(f".{path.name}.partial")
+    temp.write_text(header + yaml.safe_dump(data, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    os.replace(temp, path)
 
 
 def _set(data, parts, value) -> None:

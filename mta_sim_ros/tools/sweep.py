@@ -1,0 +1,131 @@
+"""``mta sweep``: compare many hitching schemes (synthesis), on every core or on a Dask cluster.
+
+    mta sweep SPEC.yaml [--out DIR] [--workers N | --scheduler ADDRESS | --scheduler-file FILE | --serial]
+    mta sweep report DIR [--x METRIC] [--y METRIC] [--scene NAME] [--best N] [-o FOLDER]
+    mta sweep export DIR RUN -o TRAIN.yaml [--spec SPEC.yaml]
+
+The spec (mta_sim_ros/sweep/spec.py, config/sweeps/hitching.yaml) names a base train, scenes, the
+factors that vary and how they are sampled. Every run measures its metrics while it runs (no bag;
+the spec's ``bags:`` lists runs that write one too) and is one row of DIR/results.parquet and
+DIR/results.csv (default DIR: sweeps/<spec name>). A second call with the same spec and DIR runs
+only what is missing. By default an embedded Dask LocalCluster with one worker process per core,
+on 127.0.0.1; ``--scheduler``/``--scheduler-file`` runs the same sweep on an existing cluster (its
+workers need this package installed), ``--serial`` in this process. A run that jackknifes or
+leaves the model's domain is a row with its verdict and reason; a scheme a constraint drops is a
+row marked dropped. A bad spec is refused in one line naming the field (exit 2).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from ..validate import COUNT, fail, number_arg, show
+
+SUBCOMMANDS = ("report", "export")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("target", metavar="SPEC|report|export", help="a sweep spec YAML, or report / export")
+    p.add_argument("items", nargs="*", metavar="ARG", help="report: DIR; export: DIR RUN")
+    p.add_argument("--out", "-o", help="run: the results folder (default sweeps/<spec name>); report: the "
+                                       "report folder (default DIR/report); export: the train file to write")
+    engine = p.add_mutually_exclusive_group()
+    engine.add_argument("--workers", type=number_arg(COUNT, int), help="worker processes of the embedded "
+                                                                       "LocalCluster (default: one per core)")
+    engine.add_argument("--scheduler", help="the address of a running Dask scheduler (tcp://HOST:PORT)")
+    engine.add_argument("--scheduler-file", help="the scheduler file of a running Dask cluster")
+    engine.add_argument("--serial", action="store_true", help="run in this process, no Dask")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.add_argument("--x", default="energy_per_ha_kWh", help="report: the Pareto front's first metric (minimised)")
+    p.add_argument("--y", default="headland_width_m", help="report: its second metric (minimised)")
+    p.add_argument("--scene", help="report: one scene (default: each)")
+    p.add_argument("--best", type=number_arg(COUNT, int), default=10, help="report: schemes in the best table")
+    p.add_argument("--spec", help="export: the sweep's spec, if it is no longer where the sweep read it")
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.target == "report":
+        return report_main(args)
+    if args.target == "export":
+        return export_main(args)
+    if args.items:
+        fail("ARG", show(args.items[0]), "left out when running a spec (report DIR and export DIR RUN take it)")
+    return run_main(args)
+
+
+def run_main(args: argparse.Namespace) -> int:
+    from ..sweep import engine, spec as sweep_spec
+    from ..validate import output_folder
+
+    spec = sweep_spec.load(args.target)
+    out = output_folder(args.out or os.path.join("sweeps", spec.name), "--out")
+    schemes = sweep_spec.scheme_count(spec)
+    engine.ResultStore(out, spec)  # refuses a folder of another spec's results before saying anything
+    if not args.quiet:
+        print(f"mta sweep: {spec.name}: {schemes} schemes x {len(spec.scenes)} scenes = "
+              f"{schemes * len(spec.scenes)} runs ({spec.method}), into {out}", file=sys.stderr)
+    result = engine.run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
+                              scheduler_file=args.scheduler_file, serial=args.serial, quiet=args.quiet)
+    rate = result.ran / result.wall if result.wall > 0 else 0.0
+    print(f"{result.results}: {result.rows} rows ({result.ran} run now in {result.wall:.1f} s, {rate:.1f} runs/s; "
+          f"{result.resumed} already there); {result.engine}")
+    print(f"{result.csv}")
+    if spec.bags:
+        for path in engine.write_bags(spec, out):
+            print(path)
+    return 0
+
+
+def report_main(args: argparse.Namespace) -> int:
+    from ..sweep import report
+
+    if len(args.items) != 1:
+        fail("report", show(" ".join(args.items)) if args.items else "(missing)", "given one results folder: "
+             "mta sweep report DIR")
+    for path in report.make_report(args.items[0], x=args.x, y=args.y, scene=args.scene, best=args.best,
+                                   out=args.out):
+        print(path)
+    return 0
+
+
+def export_main(args: argparse.Namespace) -> int:
+    from ..sweep import report
+
+    if len(args.items) != 2:
+        fail("export", show(" ".join(args.items)) if args.items else "(missing)",
+             "given a results folder and a run: mta sweep export DIR RUN -o TRAIN.yaml")
+    if not args.out:
+        fail("--out", "(missing)", "given: the train file to write")
+    if not args.items[1].isdigit():
+        fail("RUN", show(args.items[1]), "a run index (the results' run column)")
+    for path in report.export(args.items[0], int(args.items[1]), Path(args.out), spec_path=args.spec):
+        print(path)
+    return 0
+
+
+def write_bags(spec, out: Path) -> list[Path]:
+    """The bags of the runs the spec's ``bags:`` lists, as ``mta run`` writes them, each from its
+    scheme's train and scene files (written beside: out/bags/run-N/), so the bag's metadata holds
+    files that repeat the run: out/bags/run-N.mcap and its report. A run that fails is said, the
+    others go on."""
+    from ..sweep import spec as sweep_spec
+    from . import run as run_tool
+
+    schemes = sweep_spec.schemes(spec)
+    written = []
+    for run in sorted(spec.bags):
+        index, j = divmod(run, len(spec.scenes))
+        folder = out / "bags" / f"run-{run}"
+        scene_paths = sweep_spec.write_scheme(spec, schemes[index], folder / "train.yaml", scenes_folder=folder)
+        bag = out / "bags" / f"run-{run}.mcap"
+        args = argparse.Namespace(scene=str(scene_paths[j]), bag=str(bag), report=None, method=None, step=None,
+                                  rate=None, fidelity=None if spec.fidelity == "auto" else spec.fidelity,
+                                  split_kinks=None, frame_id="map", quiet=True)
+        code = run_tool.main(args)
+        if code not in (0, run_tool.EXIT_STOPPED):
+            print(f"mta sweep: the bag of run {run} was not written (mta run exit {code})", file=sys.stderr)
+            continue
+        written.append(bag)
+    return written
