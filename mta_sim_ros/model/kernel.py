@@ -690,28 +690,37 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     method keeps its order. A kernel model's steering angle then follows the actuator's closed
     form (``actuator_psi``, see ``rk_step``). Without ``split`` every law follows the state and
     psi_1 is stepped like the rest (the code before kink splitting, bit for bit)."""
-    size = y0.shape[0]
-    K = np.empty((T.shape[0] - 2, size))
-    tmp = np.empty(size)
-    y = y0.copy()
-    y1 = np.empty(size)
-    rec = np.empty((0, REC))
+    return advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, workspace(P, T, y0.shape[0]))
+
+
+@jitable
+def workspace(P, T, size):
+    """The arrays ``advance_in`` works in: (K, tmp, y, y1, rec, lag, g0, g1, g, changed, mode, trial)."""
+    n = int(P[H.n]) if P.shape[0] else 0
+    width = FORCE_SWITCHES + n + 1
+    return (np.empty((T.shape[0] - 2, size)), np.empty(size), np.empty(size), np.empty(size), np.empty((0, REC)),
+            np.zeros(5), np.empty(width), np.empty(width), np.empty(width), np.zeros(width, dtype=np.bool_),
+            np.full(1 + width, NATURAL, dtype=np.int64), np.empty(size))
+
+
+@jitable
+def advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, work):
+    """``advance`` in the arrays of ``workspace`` (a whole run allocates them once, ``run``)."""
+    K, tmp, y, y1, rec, lag, g0, g1, g, changed, mode, trial = work
+    y[:] = y0
     count = max(1, math.ceil((t1 - t0) / max_step - 1e-9))
     h = (t1 - t0) / count
     nfev = 0
-    lag = np.zeros(5)
+    lag[:] = 0.0
     if not split:
         natural = no_mode()
         for i in range(count):
             nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec, natural, lag)
             y, y1 = y1, y
-        return y, nfev, 0
+        return y.copy(), nfev, 0
     n = int(P[H.n]) if P.shape[0] else 0
-    width = FORCE_SWITCHES + n + 1
-    g0, g1, g = np.empty(width), np.empty(width), np.empty(width)
-    changed = np.zeros(width, dtype=np.bool_)
-    mode = np.full(1 + width, NATURAL, dtype=np.int64)
-    trial = np.empty(size)
+    changed[:] = False
+    mode[:] = NATURAL
     kinks = 0
     release = actuator_release(P, y[n + 2], command) if P.shape[0] else math.inf
     released = not EDGE * h < release < math.inf  # not rate-limited, or letting go at the start
@@ -764,7 +773,7 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
                 done += length
                 continue
             break
-    return y, nfev, kinks
+    return y.copy(), nfev, kinks
 
 
 # -- entry points (compiled; ``.py_func`` is the plain-Python path) ----------------------------------
@@ -880,12 +889,14 @@ def run(P, P_out, T, y0, commands, v_sets, tick, max_step, split, start, trace):
     y = y0.copy()
     nfev = 0
     kinks = 0
+    work = workspace(P, T, y0.shape[0])
     for i in range(start, commands.shape[0]):
         t0 = i * tick
         if kinematic:
             y[n + 4] = (v_sets[i] - y[n + 3]) / tick
-        y, used, split_at = advance(model_rhs, switches, P, T, y, commands[i], v_sets[i], t0, t0 + tick, max_step,
-                                    split)
+        y1, used, split_at = advance_in(model_rhs, switches, P, T, y, commands[i], v_sets[i], t0, t0 + tick,
+                                        max_step, split, work)
+        y[:] = y1
         nfev += used
         kinks += split_at
         law_input = y[n + 3] + y[n + 4] if kinematic else v_sets[i]
@@ -920,20 +931,21 @@ def path_offsets(px, py, qx, qy, growing):
             continue
         if j > last - 1:
             j = last - 1
-        best, side, u = _segment_distance(px, py, j, last, qx[i], qy[i])
+        best, side, u = _segment_distance2(px, py, j, last, qx[i], qy[i])
         while j + 1 <= last - 1:
-            d, s, v = _segment_distance(px, py, j + 1, last, qx[i], qy[i])
+            d, s, v = _segment_distance2(px, py, j + 1, last, qx[i], qy[i])
             if d > best:
                 break
             best, side, u, j = d, s, v, j + 1
+        best = math.sqrt(best)
         out[i] = best if side >= 0.0 else -best
         at_end[i] = (j == 0 and u < 0.0) or (j == last - 1 and u > 1.0)
     return out, at_end
 
 
 @jitable
-def _segment_distance(px, py, j, last, x, y):
-    """(distance from (x, y) to segment j of the polyline whose last vertex is ``last``, the side:
+def _segment_distance2(px, py, j, last, x, y):
+    """(squared distance from (x, y) to segment j of the polyline whose last vertex is ``last``, the side:
     the cross product's sign, the position u along the segment); the first and the last segment
     extend to lines beyond their ends (u < 0, u > 1)."""
     ax, ay = px[j], py[j]
@@ -946,7 +958,7 @@ def _segment_distance(px, py, j, last, x, y):
         u = 0.0
     ox, oy = x - (ax + u * dx), y - (ay + u * dy)
     cross = dx * oy - dy * ox
-    return math.hypot(ox, oy), cross, u
+    return ox * ox + oy * oy, cross, u
 
 
 ENTRIES = (rhs_of, tick, outputs_of, margin_of, switches_of, release_of, trace_of, run, path_offsets)
