@@ -86,6 +86,9 @@ setup(
     extras_require={
         'jit': ['numba>=0.59.1'],
         'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56'],
+        # `mta sweep` (mta_sim_ros/sweep/): the Dask engine, Parquet results, the report's tables
+        # and Saltelli/Sobol. An extra: the simulator, the node and `mta run` need none of them.
+        'sweep': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'pandas>=2.1.4', 'SALib>=1.5.1'],
     },
     zip_safe=True,
     maintainer='mta_sim_ros maintainers',

@@ -9,7 +9,7 @@ state): ``guards.check_state`` then decides, and a run it stops is a result with
 reason, not an error. Methods and levels without a whole-run kernel (adaptive methods, the slip
 level, algorithm 1) run tick by tick through ``Simulation`` into the same trace.
 
-Metrics (``METRICS`` names them with their units; per hitch k = 2..n and per cart too):
+Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2..n and per cart too):
     energy, mean and peak traction power      from F_A1 V over the run (trapezoid, as summary.py)
     worked area, energy per hectare           each cart carrying a draft works a strip as wide as
                                               its widest draft (``markers.cart_widths``) along the

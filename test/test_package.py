@@ -42,7 +42,16 @@ _ROSDEP_KEYS = {
     'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib',
     'numba': 'python3-numba',  # model/compiled.py (optional at run time; also in requirements.txt)
+    # mta sweep: rosdistro's keys, and pip keys of the package's own rosdep source (rosdep/mta_sim_ros.yaml)
+    'pandas': 'python3-pandas',
+    'psutil': 'python3-psutil',
+    'dask': 'python3-dask-distributed-pip',
+    'distributed': 'python3-dask-distributed-pip',
+    'pyarrow': 'python3-pyarrow-pip',
+    'SALib': 'python3-salib-pip',
 }
+#: the keys rosdistro lacks, defined by the package's own rosdep source
+_OWN_ROSDEP = REPO / 'rosdep' / 'mta_sim_ros.yaml'
 # Third-party modules without a rosdep key: import name -> PyPI distribution
 # that must be listed in requirements.txt.
 _PIP_ONLY = {
@@ -141,6 +150,21 @@ def test_every_imported_ros_package_is_an_exec_depend():
                    if name in _PIP_ONLY and _PIP_ONLY[name] not in reqs}
     assert not missing_pip, (
         f'Python libraries imported but missing from requirements.txt: {missing_pip}')
+
+
+def test_the_own_rosdep_keys_are_pip_keys_of_the_requirements():
+    """Every package.xml key ending in -pip is defined in rosdep/mta_sim_ros.yaml as pip packages
+    for debian and ubuntu, and each package is in requirements.txt (the venvs test them)."""
+    import yaml
+
+    own = yaml.safe_load(_OWN_ROSDEP.read_text())
+    keys = {e.text.strip() for e in _manifest().findall('exec_depend') if e.text.strip().endswith('-pip')}
+    assert keys and keys <= set(own), keys - set(own)
+    reqs = _requirement_names()
+    for key in keys:
+        for distro in ('debian', 'ubuntu'):
+            for package in own[key][distro]['pip']['packages']:
+                assert package.split('[')[0].lower() in {r.lower() for r in reqs}, (key, package)
 
 
 def test_the_launch_files_imports_are_exec_depends():

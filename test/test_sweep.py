@@ -293,3 +293,22 @@ def test_missing_files_and_bad_yaml_are_refused(tmp_path, capsys):
         assert len(err.splitlines()) == 1 and field in err, err
     assert cli.main(["sweep", str(tmp_path / "absent.yaml")]) == 2
     assert "absent.yaml" in capsys.readouterr().err
+
+
+def test_a_run_asked_for_writes_its_bag_and_the_bag_repeats_the_row(tmp_path):
+    """``bags: [3]``: run 3 (scheme 1, the headland turn) also as ``mta run`` writes it, from its
+    exported files; mta analyze's off-tracking of that bag (its own search, on the recorded poses)
+    equals the row's."""
+    from mta_sim_ros.tools.analyze import load_bag, off_tracking
+
+    text = BASE.replace("  - path: carts[2].length\n    low: 5.0\n    high: 7.0\n    steps: 2\n", "") + "bags: [3]\n"
+    path = write_spec(tmp_path, text)
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(path), "--out", str(out), "--serial", "--quiet"]) == 0
+    row = pq.read_table(out / "results.parquet").to_pylist()[3]
+    assert row["scene"] == "headland_turn" and row["carts[0].hitch_offset"] == 2.0
+    bag = out / "bags" / "run-3.mcap"
+    data = load_bag(bag)
+    tracked = {entry["cart"]: entry["max_abs_m"] for entry in off_tracking(data)}
+    assert tracked["air_cart"] == pytest.approx(row["cart2_offtracking_m"], abs=1e-9)
+    assert tracked["seeder"] == pytest.approx(row["cart3_offtracking_m"], abs=1e-9)

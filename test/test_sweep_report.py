@@ -178,7 +178,8 @@ def test_make_report_writes_the_figures_and_the_counts(grid, tmp_path):
     turn = df[df["scene"] == "headland_turn"]
     front = report.pareto_front(turn, "energy_per_ha_kWh", "headland_width_m")
     assert len(front) >= 1
-    table = _section(_section(md, "## Scene headland_turn"), "### Pareto front of energy_per_ha_kWh and headland_width_m")
+    table = _section(_section(md, "## Scene headland_turn"),
+                     "### Pareto front of energy_per_ha_kWh and headland_width_m")
     rows = [line for line in table.splitlines() if line.startswith("| ") and not line.startswith("| carts")]
     assert [int(r.split("|")[-2]) for r in rows] == front["run"].tolist()
     assert "Sobol" not in md  # a grid
@@ -193,7 +194,8 @@ def test_make_report_writes_the_figures_and_the_counts(grid, tmp_path):
 
 def test_bad_names_and_folders_are_one_line_faults(grid, tmp_path):
     _, folder = grid
-    with pytest.raises(InputError, match=r"^--x: 'energy_per_ha_kwh' must be a metric .*did you mean energy_per_ha_kWh\?"):
+    with pytest.raises(InputError, match=r"^--x: 'energy_per_ha_kwh' must be a metric .*"
+                                         r"did you mean energy_per_ha_kWh\?"):
         report.make_report(folder, x="energy_per_ha_kwh", out=tmp_path / "r")
     with pytest.raises(InputError, match=r"^--y: 'headland_width' .*did you mean headland_width_m\?"):
         report.make_report(folder, y="headland_width", out=tmp_path / "r")
@@ -298,8 +300,8 @@ def test_export_runs_as_the_sweep_ran_it(grid, tmp_path):
     assert paths == [out, out.with_name("scheme.straight_pass.yaml"), out.with_name("scheme.headland_turn.yaml")]
     header = out.read_text().splitlines()[:4]
     assert f"run {int(row['run'])}" in header[0] and "sweep grid" in header[0]
-    assert header[2] == (f"# factors: carts[0].hitch_offset = {row['carts[0].hitch_offset']!r}, "
-                         f"scene.speed = {row['scene.speed']!r}")
+    assert header[2] == (f"# factors: carts[0].hitch_offset = {float(row['carts[0].hitch_offset'])!r}, "
+                         f"scene.speed = {float(row['scene.speed'])!r}")
     assert header[3] == f"# train_hash: {row['train_hash']}"
     train = loader.load_train(out)
     assert engine.train_hash(train) == row["train_hash"]
@@ -310,9 +312,10 @@ def test_export_runs_as_the_sweep_ran_it(grid, tmp_path):
         assert scene.speed is None or scene.speed.value[0] == row["scene.speed"]
         match = df[(df["scheme"] == row["scheme"]) & (df["scene"] == scene.name)].iloc[0]
         _assert_row_metrics(batch.run_metrics(scene), match)
-    # The same with the spec given.
-    assert report.export(folder, int(row["run"]), tmp_path / "again.yaml", spec_path=spec_path)[0].read_text() \
-        == out.read_text()
+    # The same with the spec given (named in the header).
+    again = report.export(folder, int(row["run"]), tmp_path / "again.yaml", spec_path=spec_path)[0].read_text()
+    assert again.splitlines()[1].startswith(f"# spec: {spec_path}; ")
+    assert again.splitlines()[4:] == out.read_text().splitlines()[4:]
 
 
 def test_export_without_scene_factors(saltelli, tmp_path):
@@ -320,8 +323,14 @@ def test_export_without_scene_factors(saltelli, tmp_path):
     df = report.load_results(folder)
     row = df.iloc[17]
     out = tmp_path / "scheme17.yaml"
-    with pytest.raises(InputError, match=r"^--spec: \(not given\) must be the sweep's spec file.*relative paths"):
-        report.export(folder, 17, out)
+    assert report.export(folder, 17, out) == [out]  # the spec where the sweep read it (spec_path.txt)
+    moved = spec_path.with_name("moved.yaml")
+    spec_path.rename(moved)
+    try:
+        with pytest.raises(InputError, match=r"^--spec: \(not given\) must be the sweep's spec file.*relative paths"):
+            report.export(folder, 17, out)
+    finally:
+        moved.rename(spec_path)
     assert report.export(folder, 17, out, spec_path=spec_path) == [out]
     scene_path = spec_path.parent.parent / "scenes" / "straight_pass.yaml"
     scene = loader.scene_from_data(loader.read_yaml_mapping(scene_path), str(scene_path), loader.load_train(out))

@@ -35,6 +35,7 @@ from . import spec as sweep_spec
 #: verdicts besides batch.OK and batch.STOPPED
 DROPPED, REFUSED = "dropped", "refused"
 RESULTS, CSV, PARTS, SPEC_COPY = "results.parquet", "results.csv", "parts", "spec.yaml"
+SPEC_PATH = "spec_path.txt"  # where the spec was read (its relative paths are from its folder)
 
 
 def columns(spec) -> list[tuple[str, str]]:
@@ -112,7 +113,8 @@ def warm_up() -> str:
 # -- the results ---------------------------------------------------------------------------------
 
 class ResultStore:
-    """A sweep's folder: the spec it ran (``spec.yaml``), one Parquet part per finished batch
+    """A sweep's folder: the spec it ran (``spec.yaml``, and where it was read: ``spec_path.txt``),
+    one Parquet part per finished batch
     (``parts/``), and at the end ``results.parquet`` and ``results.csv`` (every row, by run)."""
 
     def __init__(self, folder: str | os.PathLike, spec):
@@ -132,6 +134,7 @@ class ResultStore:
         else:
             self.folder.mkdir(parents=True, exist_ok=True)
             _write_atomic(copy, spec.text.encode())
+        _write_atomic(self.folder / SPEC_PATH, (os.path.abspath(spec.source) + "\n").encode())
         self.parts.mkdir(exist_ok=True)
 
     def done(self) -> set[int]:

@@ -50,9 +50,9 @@ import numpy as np
 from .. import validate
 from ..validate import InputError, fail, show
 
-RESULTS, SPEC_COPY = "results.parquet", "spec.yaml"  # engine.RESULTS, engine.SPEC_COPY
-#: verdicts of a run (batch.OK, batch.STOPPED, engine.DROPPED, engine.REFUSED)
-OK, STOPPED, DROPPED, REFUSED = "ok", "stopped", "dropped", "refused"
+from ..batch import OK, STOPPED
+from .engine import DROPPED, REFUSED, RESULTS, SPEC_COPY, SPEC_PATH
+
 VERDICTS = (OK, STOPPED, DROPPED, REFUSED)
 #: columns every results table has (engine.columns)
 REQUIRED = ("run", "scheme", "scene", "train_hash", "verdict", "reason")
@@ -71,6 +71,8 @@ MAX_SCATTER = 20_000
 #: reasons listed per verdict (the most frequent), the rest counted together
 MAX_REASONS = 20
 FIGURE_DPI = 100
+#: the seed of SALib's bootstrap of the confidence intervals (SALib ignores a seed of 0)
+SOBOL_SEED = 1
 
 
 # --------------------------------------------------------------------------- the results
@@ -85,19 +87,24 @@ def load_results(folder: str | os.PathLike) -> "pandas.DataFrame":
 
     path = Path(folder) / RESULTS
     if not Path(folder).is_dir():
-        fail("folder", show(str(folder)), "a sweep's folder (mta sweep --out): no such folder")
+        fail("folder", _path(folder), "a sweep's folder (mta sweep --out): no such folder")
     if not path.is_file():
-        fail("folder", show(str(folder)), f"a finished sweep's folder, holding {RESULTS} (not found: {path}; "
+        fail("folder", _path(folder), f"a finished sweep's folder, holding {RESULTS} (not found: {path}; "
              "the engine writes it when every run is done)")
     try:
         df = pd.read_parquet(path)
     except (OSError, ValueError, pyarrow.ArrowException) as err:
-        fail("results", show(str(path)), f"a readable Parquet file of a sweep's results "
+        fail("results", _path(path), f"a readable Parquet file of a sweep's results "
              f"({validate.one_line(str(err))[:200]})")
     missing = [c for c in REQUIRED if c not in df.columns]
     if missing:
-        fail("results", show(str(path)), f"a sweep's results: no column {', '.join(missing)}")
+        fail("results", _path(path), f"a sweep's results: no column {', '.join(missing)}")
     return df.sort_values("run", kind="stable").reset_index(drop=True)
+
+
+def _path(path) -> str:
+    """A path in a fault, whole and quoted (``show`` would cut a long one)."""
+    return validate.one_line(repr(str(path)))
 
 
 def factor_columns(df) -> list[str]:
@@ -159,18 +166,13 @@ def pareto_front(df, x: str, y: str, minimize: tuple[bool, bool] = (True, True))
     b = _signed(ok[y], minimize[1])
     order = np.lexsort((ok["run"].to_numpy(), b, a))
     a, b = a[order], b[order]
-    keep = np.zeros(len(order), dtype=bool)
-    best_b = math.inf  # the best y of the rows with a strictly better x
-    i = 0
-    while i < len(order):
-        j = i
-        while j < len(order) and a[j] == a[i]:
-            j += 1
-        group_best = b[i]  # rows i..j-1 share x; sorted by y, the first is the best
-        if group_best < best_b:
-            keep[i:j] = b[i:j] == group_best
-        best_b = min(best_b, group_best)
-        i = j
+    if not len(a):
+        return ok
+    start = np.r_[True, a[1:] != a[:-1]]  # the first row of each run of equal x
+    group = np.cumsum(start) - 1
+    group_best = b[start]  # sorted by y within an x, the first row has the best y
+    better_x_best = np.r_[math.inf, np.minimum.accumulate(group_best)[:-1]]  # best y of the better x's
+    keep = (b == group_best[group]) & (group_best[group] < better_x_best[group])
     return ok.iloc[order[keep]]
 
 
@@ -220,7 +222,7 @@ def stored_spec(folder: str | os.PathLike) -> tuple[str, dict]:
     """(text, mapping) of the spec the sweep in ``folder`` kept (``spec.yaml``)."""
     path = Path(folder) / SPEC_COPY
     if not path.is_file():
-        fail("folder", show(str(folder)), f"a sweep's folder, holding the {SPEC_COPY} the engine keeps "
+        fail("folder", _path(folder), f"a sweep's folder, holding the {SPEC_COPY} the engine keeps "
              f"(not found: {path})")
     text = validate.read_text(path)
     return text, validate.parse_mapping(text, str(path))
@@ -271,7 +273,7 @@ def sobol_indices(spec, df, metric: str, scene: str) -> dict:
              "given by every run for Sobol indices (Saltelli's estimators need every sample)")
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a constant metric: 0/0, the indices NaN
-        result = sobol.analyze(design.problem(), y, calc_second_order=True, print_to_console=False, seed=0)
+        result = sobol.analyze(design.problem(), y, calc_second_order=True, print_to_console=False, seed=SOBOL_SEED)
     return {name: {key: float(result[key][i]) for key in ("S1", "S1_conf", "ST", "ST_conf")}
             for i, name in enumerate(design.factors)}
 
@@ -301,8 +303,8 @@ def make_report(folder: str | os.PathLike, x: str = "energy_per_ha_kWh", y: str 
     check_metric(df, y, "--y")
     if y == x:
         fail("--y", show(y), f"another metric than --x ({x})")
-    if not (isinstance(best, numbers.Integral) and not isinstance(best, bool) and 1 <= best <= 100_000):
-        fail("--best", show(best), "a whole number in [1, 100000]")
+    if not (isinstance(best, numbers.Integral) and not isinstance(best, bool) and validate.COUNT.test(best)):
+        fail("--best", show(best), f"a whole number {validate.COUNT.text}")
     scenes = scene_names(df)
     if scene is not None and scene not in scenes:
         fail("--scene", show(scene), f"a scene of the results: one of {', '.join(scenes)}"
@@ -311,7 +313,10 @@ def make_report(folder: str | os.PathLike, x: str = "energy_per_ha_kWh", y: str 
         minimize = (x not in MAXIMIZED, y not in MAXIMIZED)
     folder = Path(folder)
     out = validate.output_folder(folder / "report" if out is None else out, "--out")
-    design = stored_design(folder, df)
+    try:
+        design = stored_design(folder, df)
+    except InputError:  # results without the spec text they ran: no Sobol indices
+        design = Design(f"unknown (no readable {SPEC_COPY})", 0, tuple(factor_columns(df)))
     name = _sweep_name(folder)
     written: list[Path] = []
     sections = []
@@ -340,7 +345,7 @@ def make_report(folder: str | os.PathLike, x: str = "energy_per_ha_kWh", y: str 
 
 
 def _sweep_name(folder: Path) -> str:
-    """The spec's ``name:``, else the folder's name."""
+    """The ``name:`` of the spec text kept with the results, else the results folder's name."""
     try:
         _, data = stored_spec(folder)
     except InputError:
@@ -362,7 +367,8 @@ def _header(name: str, folder: Path, df, design: Design, x: str, y: str, minimiz
     lines = [f"# Sweep {name}", "",
              f"Results: `{folder / RESULTS}`: {len(df)} runs, {schemes} schemes x {len(scenes)} scenes "
              f"({', '.join(scenes)}); sampling {design.method}"
-             + (f" (N = {design.count})" if design.method != "grid" else "") + ".",
+             + {"saltelli": f" (N = {design.count})", "random": f" (count {design.count})"}.get(design.method, "")
+             + ".",
              f"Factors: {', '.join(factor_columns(df)) or '(none)'}.",
              f"Objectives: x = {x} ({sense[0]}), y = {y} ({sense[1]}).", ""]
     return "\n".join(lines) + "\n"
@@ -390,8 +396,8 @@ def _verdicts(df) -> str:
 def _scene_section(scene: str, rows, front, top, x: str, y: str, best: int, minimize, pareto_png: Path,
                    scatter_png: Path, sobol, factors: list[str]) -> str:
     finite = int(_ok_finite(rows, x, y).sum())
-    lines = [f"## Scene {scene}", "", f"![Pareto front]({pareto_png.name})", "", f"![Scatter matrix]({scatter_png.name})",
-             "", f"### Pareto front of {x} and {y}", ""]
+    lines = [f"## Scene {scene}", "", f"![Pareto front]({pareto_png.name})", "",
+             f"![Scatter matrix]({scatter_png.name})", "", f"### Pareto front of {x} and {y}", ""]
     if front.empty:
         lines.append(f"No ok run of this scene has both {x} and {y} finite.")
     else:
@@ -408,7 +414,8 @@ def _scene_section(scene: str, rows, front, top, x: str, y: str, best: int, mini
     if sobol is not None:
         lines += ["", "### Sobol indices", "",
                   "First-order S1 and total ST, with their 95 % confidence half-widths (SALib, 100 bootstrap "
-                  "resamples).", "", "| metric | factor | S1 | S1 conf | ST | ST conf |", "|---|---|---:|---:|---:|---:|"]
+                  "resamples).", "", "| metric | factor | S1 | S1 conf | ST | ST conf |",
+                  "|---|---|---:|---:|---:|---:|"]
         notes = []
         for metric, indices in sobol.items():
             if isinstance(indices, str):
@@ -532,18 +539,20 @@ def plot_scatter(rows, metrics: list[str], path: Path, title: str) -> Path:
 # --------------------------------------------------------------------------- export
 
 
-def export(folder: str | os.PathLike, run, out: str | os.PathLike, spec_path: str | os.PathLike | None = None
-           ) -> list[Path]:
+def export(folder: str | os.PathLike, run, out: str | os.PathLike, spec_path: str | os.PathLike | None = None,
+           all_scenes: bool = False) -> list[Path]:
     """Write the scheme of run ``run`` of the sweep in ``folder`` as a train file at ``out``: the
     mapping ``spec.scheme_data`` gives (with ``name:`` added if the base train had none, so the
     train loads as the same one), a comment header naming the sweep, the run, the factors' values
     and the train hash. A scheme that varies scene fields also gets each scene, beside ``out`` as
     ``<out stem>.<scene>.yaml``, its ``train:`` the exported file (and its ``fidelity:`` the
-    sweep's, unless the sweep's is auto, so the scene runs as the sweep ran it). Returns the
-    paths written, the train file first.
+    sweep's, unless the sweep's is auto, so the scene runs as the sweep ran it); ``all_scenes``
+    writes them for any scheme (a bag of the run needs its scene). Returns the paths written, the
+    train file first.
 
     The schemes come from the spec: ``spec_path`` (its text must be the ``spec.yaml`` the sweep
-    kept: else the spec changed since the sweep), or when None the kept ``spec.yaml`` itself if
+    kept: else the spec changed since the sweep), or when None the file the sweep read
+    (``spec_path.txt``) if its text is still that, or else the kept ``spec.yaml`` itself if
     every file it names is an absolute path (relative ones meant the spec's own folder, which the
     results do not record). The train rebuilt must have the run's train hash. A run that is not
     in the results, or whose scheme was dropped or refused, raises InputError."""
@@ -577,23 +586,24 @@ def export(folder: str | os.PathLike, run, out: str | os.PathLike, spec_path: st
     if "name" not in train_data:
         train_data = {"name": train.name, **train_data}
     out = validate.output_file(out, "--out")
-    header = [f"Train of scheme {index} of sweep {spec.name} (results {folder}, run {int(row['run'])}, "
+    name = _sweep_name(folder)
+    header = [f"Train of scheme {index} of sweep {name} (results {folder}, run {int(row['run'])}, "
               f"scene {row['scene']}, verdict {row['verdict']}), exported by mta_sim_ros.sweep.report.",
               f"spec: {spec.source}; base train: {source}",
               "factors: " + ", ".join(f"{k} = {_shown(v)}" for k, v in labels.items()),
               f"train_hash: {digest}"]
     _write_yaml(out, header, train_data)
     written = [out]
-    if any(f.target == "scene" for f in spec.factors):
+    if all_scenes or any(f.target == "scene" for f in spec.factors):
         scene_values = ", ".join(f"{k} = {_shown(v)}" for f, (k, v) in zip(spec.factors, labels.items())
                                  if f.target == "scene")
-        for name, data, scene_source in scenes:
-            path = validate.output_file(out.with_name(f"{out.stem}.{_file_part(name)}.yaml"), "--out")
-            data = {"name": name, **data} if "name" not in data else data
+        for scene_name, data, scene_source in scenes:
+            path = validate.output_file(out.with_name(f"{out.stem}.{_file_part(scene_name)}.yaml"), "--out")
+            data = {"name": scene_name, **data} if "name" not in data else data
             data["train"] = os.path.relpath(out.resolve(), path.resolve().parent)
             if spec.fidelity != "auto":
                 data["fidelity"] = spec.fidelity
-            _write_yaml(path, [f"Scene {name} of scheme {index} of sweep {spec.name} (results {folder}), exported "
+            _write_yaml(path, [f"Scene {scene_name} of scheme {index} of sweep {name} (results {folder}), exported "
                                "by mta_sim_ros.sweep.report.", f"base scene: {scene_source}",
                                f"scene factors: {scene_values}"
                                + (f"; fidelity: {spec.fidelity}, the sweep's" if spec.fidelity != "auto" else "")],
@@ -619,6 +629,11 @@ def _export_spec(folder: Path, spec_path):
     from . import spec as sweep_spec
 
     text, data = stored_spec(folder)
+    recorded = folder / SPEC_PATH
+    if spec_path is None and recorded.is_file():  # where the sweep read it, if it is still that spec
+        where = recorded.read_text(encoding="utf-8", errors="replace").strip()
+        if os.path.isfile(where) and validate.read_text(where) == text:
+            spec_path = where
     if spec_path is None:
         named = _named_files(data)
         relative = [p for p in named if not (isinstance(p, str) and os.path.isabs(p))]
@@ -628,7 +643,7 @@ def _export_spec(folder: Path, spec_path):
         spec_path = folder / SPEC_COPY
     spec = sweep_spec.load(spec_path)
     if spec.text != text:
-        fail("--spec", show(str(spec_path)), f"the spec of the sweep in {folder}: the spec changed since the sweep "
+        fail("--spec", _path(spec_path), f"the spec of the sweep in {folder}: the spec changed since the sweep "
              f"(its text is not {folder / SPEC_COPY})")
     return spec
 
@@ -659,7 +674,7 @@ def _write_yaml(path: Path, header: list[str], data: dict) -> None:
     import yaml
 
     text = "".join(f"# {validate.one_line(line)}\n" for line in header)
-    text += yaml.safe_dump(data, sort_keys=False)
+    text += yaml.safe_dump(data, sort_keys=False, allow_unicode=True)
     temp = path.with_name(path.name + ".tmp")
     temp.write_text(text, encoding="utf-8")
     os.replace(temp, path)

@@ -428,37 +428,6 @@ def scheme_data(spec: Spec, scheme: tuple) -> tuple[dict, str, list]:
     return train, source, scenes
 
 
-def write_scheme(spec: Spec, scheme: tuple, train_path, scenes_folder=None) -> list:
-    """Write a scheme's train file at ``train_path`` (YAML that ``mta run``, ``mta session`` and the
-    node take as they are) and, into ``scenes_folder`` if given, each scene's file, its ``train:``
-    naming that train file. Returns the scene files written (in the spec's order)."""
-    from pathlib import Path
-
-    train_data, _, scenes = scheme_data(spec, scheme)
-    train_path = Path(train_path)
-    train_path.parent.mkdir(parents=True, exist_ok=True)
-    head = "".join(f"#   {k}: {v}\n" for k, v in scheme_label(spec, scheme).items())
-    _write_yaml(train_path, f"# scheme of sweep {spec.name!r} ({spec.source}):\n{head}", train_data)
-    written = []
-    if scenes_folder is not None:
-        folder = Path(scenes_folder)
-        folder.mkdir(parents=True, exist_ok=True)
-        for name, data, _ in scenes:
-            path = folder / f"{name}.yaml"
-            data["train"] = os.path.relpath(train_path.resolve(), folder.resolve())
-            _write_yaml(path, f"# scene {name!r} of sweep {spec.name!r}, with the scheme's train\n", data)
-            written.append(path)
-    return written
-
-
-def _write_yaml(path, header: str, data) -> None:
-    import yaml
-
-    temp = path.with_name(f".{path.name}.partial")
-    temp.write_text(header + yaml.safe_dump(data, sort_keys=False, allow_unicode=True), encoding="utf-8")
-    os.replace(temp, path)
-
-
 def _set(data, parts, value) -> None:
     node = data
     for part in parts[:-1]:

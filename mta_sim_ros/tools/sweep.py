@@ -38,11 +38,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     engine.add_argument("--scheduler-file", help="the scheduler file of a running Dask cluster")
     engine.add_argument("--serial", action="store_true", help="run in this process, no Dask")
     p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.add_argument("--x", default="energy_per_ha_kWh", help="report: the Pareto front's first metric (minimised)")
-    p.add_argument("--y", default="headland_width_m", help="report: its second metric (minimised)")
+    p.add_argument("--x", default="energy_per_ha_kWh", help="report: the Pareto front's first metric (minimized; "
+                                                            "the margin, area and distance maximized)")
+    p.add_argument("--y", default="headland_width_m", help="report: its second metric (likewise)")
     p.add_argument("--scene", help="report: one scene (default: each)")
     p.add_argument("--best", type=number_arg(COUNT, int), default=10, help="report: schemes in the best table")
-    p.add_argument("--spec", help="export: the sweep's spec, if it is no longer where the sweep read it")
+    p.add_argument("--spec", help="export: the sweep's spec, if it is no longer where the sweep read it "
+                                  "(DIR/spec_path.txt)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -73,7 +75,7 @@ def run_main(args: argparse.Namespace) -> int:
           f"{result.resumed} already there); {result.engine}")
     print(f"{result.csv}")
     if spec.bags:
-        for path in engine.write_bags(spec, out):
+        for path in write_bags(spec, out):
             print(path)
     return 0
 
@@ -107,22 +109,21 @@ def export_main(args: argparse.Namespace) -> int:
 
 def write_bags(spec, out: Path) -> list[Path]:
     """The bags of the runs the spec's ``bags:`` lists, as ``mta run`` writes them, each from its
-    scheme's train and scene files (written beside: out/bags/run-N/), so the bag's metadata holds
-    files that repeat the run: out/bags/run-N.mcap and its report. A run that fails is said, the
-    others go on."""
-    from ..sweep import spec as sweep_spec
+    scheme's train and scene files (exported beside: out/bags/run-N/, report.export), so the bag's
+    metadata holds files that repeat the run: out/bags/run-N.mcap and its report. A run that
+    fails is said, the others go on."""
+    from ..sweep import report
     from . import run as run_tool
 
-    schemes = sweep_spec.schemes(spec)
     written = []
     for run in sorted(spec.bags):
-        index, j = divmod(run, len(spec.scenes))
         folder = out / "bags" / f"run-{run}"
-        scene_paths = sweep_spec.write_scheme(spec, schemes[index], folder / "train.yaml", scenes_folder=folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        paths = report.export(out, run, folder / "train.yaml", spec_path=spec.source, all_scenes=True)
+        scene = paths[1 + run % len(spec.scenes)]
         bag = out / "bags" / f"run-{run}.mcap"
-        args = argparse.Namespace(scene=str(scene_paths[j]), bag=str(bag), report=None, method=None, step=None,
-                                  rate=None, fidelity=None if spec.fidelity == "auto" else spec.fidelity,
-                                  split_kinks=None, frame_id="map", quiet=True)
+        args = argparse.Namespace(scene=str(scene), bag=str(bag), report=None, method=None, step=None, rate=None,
+                                  fidelity=None, split_kinks=None, frame_id="map", quiet=True)
         code = run_tool.main(args)
         if code not in (0, run_tool.EXIT_STOPPED):
             print(f"mta sweep: the bag of run {run} was not written (mta run exit {code})", file=sys.stderr)

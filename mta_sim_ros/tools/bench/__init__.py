@@ -14,6 +14,7 @@ kinks           every method across the right-hand side's kinks, split and not
 sigkill         the simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor
 flood           the node under a flood of steering commands: deadline misses, tick percentiles, lag,
                 memory (flood.py, flooder.py)
+sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
 
 Shared: common.py (report header and writing, scene paths, child processes' environment, timing
 side by side), runs.py (node-mode runs of a scene with held inputs, hitch points, errors against a
@@ -28,7 +29,7 @@ import importlib
 #: the benchmarks' modules; each has HELP, add_arguments(parser) and main(args); the command is
 #: the module's name with '-' for '_'
 MODULES = ("realtime", "method", "work_precision", "stability", "scaling", "fidelity", "tick_parts", "kinks",
-           "sigkill", "flood")
+           "sigkill", "flood", "sweep")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
