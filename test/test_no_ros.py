@@ -161,3 +161,10 @@ def test_the_research_commands_run_from_a_plain_pip_install(noros, tmp_path):
     done = run(noros, tmp_path, "mta", "bench", "tick-parts", "--scene", SCENE, "--rounds", "1", "--calls", "1")
     assert done.returncode == 0, done.stderr
     assert "markers (MarkerArray)" in done.stdout, done.stdout
+
+    # mta sweep's libraries are setup.py's extra 'sweep', not in a plain install: one line says so
+    done = run(noros, tmp_path, "mta", "sweep", "sweeps/hitching.yaml")
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.splitlines() == [
+        "mta sweep: needs dask[distributed], pyarrow, pandas, SALib, not installed here: pip install "
+        "'mta_sim_ros[sweep]' (or 'dask[distributed]' 'pyarrow' 'pandas' 'SALib')"], done.stderr

@@ -29,8 +29,16 @@ from .. import __version__
 from ..batch import OK, metric_names, run_metrics
 from ..integrate import IntegrationError
 from ..model.guards import ModelValidityError
-from ..validate import InputError, fail, show
+from ..validate import InputError, fail, one_line, show
 from . import spec as sweep_spec
+
+#: seconds to reach a given scheduler, and for its first worker
+CONNECT_TIMEOUT = 20
+
+
+class EngineError(RuntimeError):
+    """The engine failed (not a run: a task, the cluster); one line, said with exit code 1."""
+
 
 #: verdicts besides batch.OK and batch.STOPPED
 DROPPED, REFUSED = "dropped", "refused"
@@ -267,14 +275,21 @@ def run_sweep(spec, out: str | os.PathLike, workers: int | None = None, schedule
         with _client(workers, scheduler, scheduler_file) as (client, engine):
             from distributed import as_completed
 
-            client.run(warm_up)
-            shared = client.scatter(spec, broadcast=True)
-            futures = [client.submit(run_schemes, shared, task, pure=False) for task in tasks]
-            for future in as_completed(futures):
-                rows = future.result()
-                store.write(rows)
-                progress.add(len(rows))
-                future.release()
+            try:
+                client.run(warm_up)
+                shared = client.scatter(spec, broadcast=True)
+                futures = [client.submit(run_schemes, shared, task, pure=False) for task in tasks]
+                for future in as_completed(futures):
+                    rows = future.result()
+                    store.write(rows)
+                    progress.add(len(rows))
+                    future.release()
+            except (InputError, OSError):
+                raise
+            except Exception as err:  # a task failed on a worker (not a run: runs give rows)
+                raise EngineError(f"{engine}: {type(err).__name__}: {one_line(str(err))[:300]} (the parts written "
+                                  f"so far stay in {store.folder}: the same command resumes; every worker needs "
+                                  "this package installed)") from None
     progress.close()
     results, csv, rows = store.finish()
     return SweepRun(len(all_schemes), len(all_schemes) * scenes, len(todo) * scenes, len(done) * scenes, rows,
@@ -287,15 +302,44 @@ def _client(workers: int | None, scheduler: str | None, scheduler_file: str | No
     from distributed import Client, LocalCluster
 
     if scheduler or scheduler_file:
-        with Client(address=scheduler, scheduler_file=scheduler_file, timeout="30s") as client:
-            count = len(client.scheduler_info(n_workers=-1)["workers"]) if _takes_n_workers(client) else \
-                len(client.scheduler_info()["workers"])
+        field, given = ("--scheduler", scheduler) if scheduler else ("--scheduler-file", scheduler_file)
+        if scheduler_file:  # read here: distributed waits for a missing file without end
+            scheduler = _scheduler_address(scheduler_file)
+        try:
+            client = Client(address=scheduler, timeout=f"{CONNECT_TIMEOUT}s")
+        except (OSError, ValueError, TypeError, KeyError) as err:
+            fail(field, show(given), f"{'the address' if scheduler else 'the scheduler file'} of a running Dask "
+                 f"scheduler ({type(err).__name__}: {one_line(str(err))[:200]})")
+        with client:
+            try:
+                client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+            except TimeoutError:
+                fail(field, show(given), f"a Dask cluster with workers: none joined in {CONNECT_TIMEOUT} s")
+            count = len(client.scheduler_info(**({"n_workers": -1} if _takes_n_workers(client) else {}))["workers"])
             yield client, f"Dask cluster at {client.scheduler.address} ({count} workers)"
         return
     n = workers or os.cpu_count() or 1
     with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None,
                       silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
         yield client, f"Dask LocalCluster, {n} worker processes of 1 thread on 127.0.0.1"
+
+
+def _scheduler_address(path: str) -> str:
+    """The ``address`` of a Dask scheduler file (JSON, as ``dask scheduler --scheduler-file`` writes)."""
+    import json
+
+    try:
+        with open(path, "rb") as stream:
+            data = json.loads(stream.read(1 << 16).decode("utf-8"))
+    except FileNotFoundError:
+        fail("--scheduler-file", show(path), "an existing Dask scheduler file (dask scheduler --scheduler-file "
+             "writes it)")
+    except (OSError, ValueError) as err:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        fail("--scheduler-file", show(path), f"a readable Dask scheduler file ({type(err).__name__}: "
+             f"{one_line(str(err))[:200]})")
+    if not isinstance(data, dict) or not isinstance(data.get("address"), str):
+        fail("--scheduler-file", show(path), "a Dask scheduler file: a JSON object with its \"address\"")
+    return data["address"]
 
 
 def _takes_n_workers(client) -> bool:

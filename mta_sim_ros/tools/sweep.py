@@ -21,7 +21,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..validate import COUNT, fail, number_arg, show
+from ..validate import COUNT, fail, number_arg, one_line, show
 
 SUBCOMMANDS = ("report", "export")
 
@@ -47,7 +47,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                   "(DIR/spec_path.txt)")
 
 
+#: the libraries of ``mta sweep`` (setup.py's extra ``sweep``): import name -> distribution
+LIBRARIES = {"distributed": "dask[distributed]", "pyarrow": "pyarrow", "pandas": "pandas", "SALib": "SALib"}
+
+
+def missing_libraries() -> list[str]:
+    """The distributions of LIBRARIES that cannot be imported here."""
+    import importlib.util
+
+    return [dist for name, dist in LIBRARIES.items() if importlib.util.find_spec(name) is None]
+
+
 def main(args: argparse.Namespace) -> int:
+    missing = missing_libraries()
+    if missing:
+        print(f"mta sweep: needs {', '.join(missing)}, not installed here: pip install "
+              f"'mta_sim_ros[sweep]' (or {' '.join(repr(m) for m in missing)})", file=sys.stderr)
+        return 1
     if args.target == "report":
         return report_main(args)
     if args.target == "export":
@@ -58,18 +74,23 @@ def main(args: argparse.Namespace) -> int:
 
 
 def run_main(args: argparse.Namespace) -> int:
+    from ..config import resolve_config_path
     from ..sweep import engine, spec as sweep_spec
     from ..validate import output_folder
 
-    spec = sweep_spec.load(args.target)
+    spec = sweep_spec.load(resolve_config_path(args.target))  # a path, or a name in the config folder
     out = output_folder(args.out or os.path.join("sweeps", spec.name), "--out")
     schemes = sweep_spec.scheme_count(spec)
     engine.ResultStore(out, spec)  # refuses a folder of another spec's results before saying anything
     if not args.quiet:
         print(f"mta sweep: {spec.name}: {schemes} schemes x {len(spec.scenes)} scenes = "
               f"{schemes * len(spec.scenes)} runs ({spec.method}), into {out}", file=sys.stderr)
-    result = engine.run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
-                              scheduler_file=args.scheduler_file, serial=args.serial, quiet=args.quiet)
+    try:
+        result = engine.run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
+                                  scheduler_file=args.scheduler_file, serial=args.serial, quiet=args.quiet)
+    except (engine.EngineError, OSError) as err:  # a failed task or cluster, a results folder that cannot be written
+        print(f"mta sweep: {one_line(str(err))}", file=sys.stderr)
+        return 1
     rate = result.ran / result.wall if result.wall > 0 else 0.0
     print(f"{result.results}: {result.rows} rows ({result.ran} run now in {result.wall:.1f} s, {rate:.1f} runs/s; "
           f"{result.resumed} already there); {result.engine}")
