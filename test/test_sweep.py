@@ -93,8 +93,11 @@ def cluster(tmp_path):
     """A Dask scheduler and two workers (with their nannies), each its own process, on 127.0.0.1."""
     scheduler_file = tmp_path / "scheduler.json"
     env = dict(os.environ, DASK_DISTRIBUTED__WORKER__DAEMON="False")
+    # --dashboard-address: the HTTP servers (health, metrics) run without a dashboard too, on 0.0.0.0
+    # unless told
     procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
-                               "--no-dashboard", "--scheduler-file", str(scheduler_file)], env=env,
+                               "--no-dashboard", "--dashboard-address", "127.0.0.1:0",
+                               "--scheduler-file", str(scheduler_file)], env=env,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)]
     try:
         deadline = time.monotonic() + 60
@@ -104,12 +107,13 @@ def cluster(tmp_path):
         for _ in range(2):
             procs.append(subprocess.Popen([str(BIN / "dask"), "worker", "--scheduler-file", str(scheduler_file),
                                            "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
-                                           "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
+                                           "--no-dashboard", "--dashboard-address", "127.0.0.1:0"], env=env, stdout=subprocess.DEVNULL,
                                           stderr=subprocess.DEVNULL, start_new_session=True))
         from distributed import Client
 
         with Client(scheduler_file=str(scheduler_file), timeout="30s") as client:
             client.wait_for_workers(2, timeout=60)
+            client.procs = procs  # for the socket check
             yield scheduler_file, client
     finally:
         for p in reversed(procs):
@@ -143,6 +147,32 @@ def test_a_sweep_on_an_external_cluster_gives_the_same_rows(serial, cluster, tmp
     same_rows(pq.read_table(by_file.results), expected)
     by_address = engine.run_sweep(spec, tmp_path / "address", scheduler=address, quiet=True)
     same_rows(pq.read_table(by_address.results), expected)
+
+
+def test_the_cluster_and_the_local_cluster_listen_on_loopback_only(serial, cluster, tmp_path):
+    """The network rule for the sweep's processes: every TCP and UDP socket of the scheduler, the
+    nannies and the workers (external, and the embedded LocalCluster's) is bound to 127.0.0.1."""
+    import psutil
+    from test_loopback import LOOPBACK, sockets
+
+    spec, _ = serial
+    scheduler_file, client = cluster
+    engine.run_sweep(spec, tmp_path / "external", scheduler_file=str(scheduler_file), quiet=True)
+    pids = set()
+    for proc in client.procs:
+        pids |= {proc.pid} | {child.pid for child in psutil.Process(proc.pid).children(recursive=True)}
+    pids |= set(client.run(os.getpid).values())
+    seen = [s for pid in pids for s in sockets(pid)]
+    assert any(s.kind.startswith("tcp") for s in seen)
+    assert all(s.address in LOOPBACK for s in seen), [str(s) for s in seen if s.address not in LOOPBACK]
+
+    with engine.cluster_client(2, None, None) as (local_client, what):  # the engine's own LocalCluster
+        assert "LocalCluster" in what
+        mine = {os.getpid()} | set(local_client.run(os.getpid).values())
+        mine |= {child.pid for child in psutil.Process().children(recursive=True)}
+        seen = [s for pid in mine for s in sockets(pid)]
+        own = [s for s in seen if s.kind.startswith("tcp")]
+        assert own and all(s.address in LOOPBACK for s in own), [str(s) for s in own if s.address not in LOOPBACK]
 
 
 MANY = BASE.replace("values: [1.0, 2.0]", "values: [0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 2.25]").replace(

@@ -272,7 +272,7 @@ def run_sweep(spec, out: str | os.PathLike, workers: int | None = None, schedule
             store.write(run_schemes(spec, task))
             progress.add(len(task) * scenes)
     else:
-        with _client(workers, scheduler, scheduler_file) as (client, engine):
+        with cluster_client(workers, scheduler, scheduler_file) as (client, engine):
             from distributed import as_completed
 
             try:
@@ -297,7 +297,7 @@ def run_sweep(spec, out: str | os.PathLike, workers: int | None = None, schedule
 
 
 @contextlib.contextmanager
-def _client(workers: int | None, scheduler: str | None, scheduler_file: str | None):
+def cluster_client(workers: int | None, scheduler: str | None, scheduler_file: str | None):
     """(a distributed Client, what it is): the cluster named, or an embedded LocalCluster."""
     from distributed import Client, LocalCluster
 
