@@ -4,6 +4,8 @@
   files: a valid spec or a one-line SpecError, never anything else, and quickly; an accepted
   scene builds a Simulation (or is refused with an InputError) that ticks or stops by a guard;
 - the node's params file reader, on random mutations of config/sim.yaml;
+- the sweep spec reader, on random mutations of config/sweeps/*.yaml: a spec or one line; an
+  accepted spec's first scheme gives rows with a verdict;
 - the node's parameters through the ROS-free path: every declared range (and past it) sampled
   at start (``session.RunSession(cfg, ...)``) and live (``RunSession.set_parameters``): accepted
   and the session still ticks, or refused with a reason; never an exception;
@@ -153,6 +155,48 @@ def test_a_mutated_train_file_is_a_train_or_one_spec_error(text):
 def test_a_mutated_scene_file_is_a_scene_or_one_spec_error(text):
     scene = load_or_refuse(lambda t: loader.load_scene_text(t, "fuzz_scene.yaml", DEFAULT_TRAIN), text)
     assert scene is None or isinstance(scene, spec.Scene) and scene.duration > 0
+
+
+SWEEP_FILES = sorted((CONFIG / "sweeps").glob("*.yaml"))
+
+
+@st.composite
+def mutated_sweep(draw) -> str:
+    """A shipped sweep spec mutated as ``mutated`` does, its files named by absolute paths (it is
+    read from WORK)."""
+    data = yaml.safe_load(draw(mutated(SWEEP_FILES)))
+    if isinstance(data, dict):
+        here = CONFIG / "sweeps"
+        if isinstance(data.get("train"), str):
+            data["train"] = str((here / data["train"]).resolve())
+        if isinstance(data.get("scenes"), list):
+            data["scenes"] = [str((here / s).resolve()) if isinstance(s, str) else s for s in data["scenes"]]
+    return yaml.safe_dump(data, allow_unicode=True)
+
+
+@RUNS
+@given(mutated_sweep())
+def test_a_mutated_sweep_spec_is_a_spec_or_one_line_and_its_first_scheme_runs(text):
+    from mta_sim_ros.sweep import engine, spec as sweep_spec
+
+    path = WORK / "fuzz_sweep.yaml"
+    path.write_text(text)
+    try:
+        loaded = sweep_spec.load(path)
+    except InputError as err:
+        assert_one_line(err)
+        seen("refused")
+        return
+    seen("loaded")
+    if sweep_spec.scheme_count(loaded) > 10_000:
+        return
+    first = sweep_spec.schemes(loaded)[0]
+    rows = engine.run_schemes(loaded, [(0, first)])
+    assert len(rows) == len(loaded.scenes)
+    assert all(r["verdict"] in ("ok", "stopped", "dropped", "refused") for r in rows)
+    for r in rows:
+        assert "\n" not in r["reason"]
+        seen(f"verdict {r['verdict']}")
 
 
 def ticks_or_stops(scene: spec.Scene, ticks: int = 5) -> None:

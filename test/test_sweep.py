@@ -342,3 +342,29 @@ def test_a_run_asked_for_writes_its_bag_and_the_bag_repeats_the_row(tmp_path):
     tracked = {entry["cart"]: entry["max_abs_m"] for entry in off_tracking(data)}
     assert tracked["air_cart"] == pytest.approx(row["cart2_offtracking_m"], abs=1e-9)
     assert tracked["seeder"] == pytest.approx(row["cart3_offtracking_m"], abs=1e-9)
+
+
+def test_a_results_folder_with_a_part_not_of_this_sweep_is_refused_in_one_line(serial, tmp_path, capsys):
+    """A damaged part, another sweep's part, a copy of a part: refused, naming the file, and nothing
+    of the folder is changed; removed, the same command completes."""
+    path = write_spec(tmp_path)
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(path), "--out", str(out), "--serial", "--quiet"]) == 0
+    parts = sorted((out / "parts").glob("*.parquet"))
+    other = tmp_path / "other"
+    assert cli.main(["sweep", str(write_spec(tmp_path, BASE.replace("steps: 2", "steps: 3"), "o.yaml")), "--out",
+                     str(other), "--serial", "--quiet"]) == 0
+    cases = [(b"PAR1 not a parquet file", "ArrowInvalid"),
+             (sorted((other / "parts").glob("*.parquet"))[-1].read_bytes(), "holds schemes outside 0..3"),
+             (parts[0].read_bytes(), "holds schemes another part holds")]
+    results = (out / "results.parquet").read_bytes()
+    capsys.readouterr()
+    for data, rule in cases:
+        planted = out / "parts" / "part-000000900-000000901.parquet"
+        planted.write_bytes(data)
+        assert cli.main(["sweep", str(path), "--out", str(out), "--serial", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "part-000000900-000000901.parquet" in err and rule in err, err
+        assert (out / "results.parquet").read_bytes() == results
+        planted.unlink()
+    assert cli.main(["sweep", str(path), "--out", str(out), "--serial", "--quiet"]) == 0

@@ -145,13 +145,33 @@ class ResultStore:
         _write_atomic(self.folder / SPEC_PATH, (os.path.abspath(spec.source) + "\n").encode())
         self.parts.mkdir(exist_ok=True)
 
-    def done(self) -> set[int]:
-        """The schemes some part holds (all their scenes: a part holds whole schemes)."""
+    def done(self, schemes: int) -> set[int]:
+        """The schemes some part holds (all their scenes: a part holds whole schemes). A part that
+        is not one of this sweep's (unreadable, other columns, schemes past the ``schemes`` it has)
+        is refused in one line naming it: removed, the same command runs its schemes again."""
+        import pyarrow as pa
         import pyarrow.parquet as pq
 
         out: set[int] = set()
         for part in sorted(self.parts.glob("part-*.parquet")):
-            out.update(pq.read_table(part, columns=["scheme"]).column(0).to_pylist())
+            name = f"{PARTS}/{part.name}"
+            rule = (f"a Parquet part of the sweep in {self.folder} (remove it, and the same command runs its "
+                    "schemes again)")
+            try:
+                schema = pq.read_schema(part)
+                if not schema.remove_metadata().equals(self.schema):
+                    fail("part", name, f"{rule}: its columns are another sweep's")
+                found = pq.read_table(part, columns=["scheme"]).column(0).to_pylist()
+            except (pa.ArrowException, OSError, ValueError) as err:
+                if isinstance(err, InputError):
+                    raise
+                fail("part", name, f"{rule}: {type(err).__name__}: {one_line(str(err))[:200]}")
+            if not all(isinstance(i, int) and 0 <= i < schemes for i in found):
+                fail("part", name, f"{rule}: it holds schemes outside 0..{schemes - 1}")
+            if out.intersection(found):
+                fail("part", name, f"{rule}: it holds schemes another part holds "
+                     f"({min(out.intersection(found))}, ...)")
+            out.update(found)
         return out
 
     def write(self, rows: list[dict]) -> Path:
@@ -260,7 +280,7 @@ def run_sweep(spec, out: str | os.PathLike, workers: int | None = None, schedule
     """Run every scheme of ``spec`` not yet in ``out`` (module docstring) and write the results."""
     store = ResultStore(out, spec)
     all_schemes = sweep_spec.schemes(spec)
-    done = store.done()
+    done = store.done(len(all_schemes))
     todo = [(i, s) for i, s in enumerate(all_schemes) if i not in done]
     scenes = len(spec.scenes)
     tasks = batches(todo, spec.batch, scenes)

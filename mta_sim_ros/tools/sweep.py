@@ -51,18 +51,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 LIBRARIES = {"distributed": "dask[distributed]", "pyarrow": "pyarrow", "pandas": "pandas", "SALib": "SALib"}
 
 
-def missing_libraries() -> list[str]:
-    """The distributions of LIBRARIES that cannot be imported here."""
+def missing_libraries() -> tuple[list[str], str]:
+    """(the distributions of LIBRARIES that are not installed here, the first import error of
+    one that is but does not import: e.g. a pyarrow built for another numpy)."""
+    import importlib
     import importlib.util
 
-    return [dist for name, dist in LIBRARIES.items() if importlib.util.find_spec(name) is None]
+    missing, broken = [], ""
+    for name, dist in LIBRARIES.items():
+        if importlib.util.find_spec(name) is None:
+            missing.append(dist)
+            continue
+        try:
+            importlib.import_module(name)
+        except ImportError as err:
+            broken = broken or f"{name}: {one_line(str(err))}"
+    return missing, broken
 
 
 def main(args: argparse.Namespace) -> int:
-    missing = missing_libraries()
+    missing, broken = missing_libraries()
     if missing:
         print(f"mta sweep: needs {', '.join(missing)}, not installed here: pip install "
               f"'mta_sim_ros[sweep]' (or {' '.join(repr(m) for m in missing)})", file=sys.stderr)
+        return 1
+    if broken:
+        print(f"mta sweep: {broken} (installed, but it does not import here)", file=sys.stderr)
         return 1
     if args.target == "report":
         return report_main(args)
@@ -131,18 +145,21 @@ def export_main(args: argparse.Namespace) -> int:
 def write_bags(spec, out: Path) -> list[Path]:
     """The bags of the runs the spec's ``bags:`` lists, as ``mta run`` writes them, each from its
     scheme's train and scene files (exported beside: out/bags/run-N/, report.export), so the bag's
-    metadata holds files that repeat the run: out/bags/run-N.mcap and its report. A run that
-    fails is said, the others go on."""
+    metadata holds files that repeat the run: out/bags/run-N.mcap and its report (a bag already
+    there is kept: a resumed sweep). A run that fails is said, the others go on."""
     from ..sweep import report
     from . import run as run_tool
 
     written = []
     for run in sorted(spec.bags):
+        bag = out / "bags" / f"run-{run}.mcap"
+        if bag.exists():  # a resumed sweep: the run and its files are the same
+            written.append(bag)
+            continue
         folder = out / "bags" / f"run-{run}"
         folder.mkdir(parents=True, exist_ok=True)
         paths = report.export(out, run, folder / "train.yaml", spec_path=spec.source, all_scenes=True)
         scene = paths[1 + run % len(spec.scenes)]
-        bag = out / "bags" / f"run-{run}.mcap"
         args = argparse.Namespace(scene=str(scene), bag=str(bag), report=None, method=None, step=None, rate=None,
                                   fidelity=None, split_kinks=None, frame_id="map", quiet=True)
         code = run_tool.main(args)
