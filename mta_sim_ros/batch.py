@@ -85,7 +85,7 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
     model = sim.model
     n = model.layout.n
     trace = np.full((ticks + 1, kernel.TRACE_HEAD + kernel.TRACE_CART * n), np.nan)
-    if sim.compiled is None or not sim._kernel_ticks:
+    if sim.compiled is None or not sim.kernel_ticks:
         return (sim, trace, commands) + _tick_by_tick(sim, commands, v_sets, trace)
     P_out = getattr(model, "P_outputs", model.P)
     y = np.ascontiguousarray(sim.y, dtype=np.float64)
@@ -96,7 +96,7 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
     stepper: FixedStep = sim.stepper
     done = 0
     while done < ticks:
-        y, done, nfev, kinks = run(model.P, P_out, stepper._T, y, commands, v_sets, sim.tick, stepper.step,
+        y, done, nfev, kinks = run(model.P, P_out, stepper.tableau.packed, y, commands, v_sets, sim.tick, stepper.step,
                                    stepper.split_kinks, done, trace)
         stepper.nfev += nfev
         stepper.kinks += kinks

@@ -260,5 +260,10 @@ def _estimate_cached(scene: Scene) -> dict:
     return _ESTIMATES[key]
 
 
+def forget_estimates() -> None:
+    """Empty the estimates' cache (a benchmark timing the estimate of a new scheme)."""
+    _ESTIMATES.clear()
+
+
 def _misses(est: dict, needs: dict) -> str:
     return ", ".join(f"{k} {est[k]:.3g} > {tol:g}" for k, tol in needs.items() if not est[k] <= tol)

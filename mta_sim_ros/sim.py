@@ -206,6 +206,12 @@ class Simulation:
     def t(self) -> float:
         return self.ticks * self.tick
 
+    @property
+    def kernel_ticks(self) -> bool:
+        """Whether a tick is one kernel call (a kernel model on a fixed-step method): what a whole
+        run in one call (batch.run_trace) takes too."""
+        return self._kernel_ticks
+
     def set_rate_limit(self, rate: float | None) -> None:
         """The steering actuator's rate limit from the next tick on, rad/s (None: the train's own
         max_rate): psi_1' = clip((clip(command, +-max_angle) - psi_1) / time_constant, +-rate),

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +89,16 @@ def test_a_sweep_on_the_local_cluster_equals_it_run_serially(serial, tmp_path):
     assert len(list((tmp_path / "cluster" / "parts").glob("*.parquet"))) == 4  # batch 2 runs: one scheme a task
 
 
+@dataclass
+class Cluster:
+    scheduler_file: Path
+    client: object  # distributed.Client
+    procs: list
+
+    def __iter__(self):  # scheduler_file, client = cluster
+        return iter((self.scheduler_file, self.client))
+
+
 @pytest.fixture
 def cluster(tmp_path):
     """A Dask scheduler and two workers (with their nannies), each its own process, on 127.0.0.1."""
@@ -113,8 +124,7 @@ def cluster(tmp_path):
 
         with Client(scheduler_file=str(scheduler_file), timeout="30s") as client:
             client.wait_for_workers(2, timeout=60)
-            client.procs = procs  # for the socket check
-            yield scheduler_file, client
+            yield Cluster(scheduler_file, client, procs)
     finally:
         for p in reversed(procs):
             with pytest.raises(ProcessLookupError) if p.poll() is not None else _nothing():
@@ -159,7 +169,7 @@ def test_the_cluster_and_the_local_cluster_listen_on_loopback_only(serial, clust
     scheduler_file, client = cluster
     engine.run_sweep(spec, tmp_path / "external", scheduler_file=str(scheduler_file), quiet=True)
     pids = set()
-    for proc in client.procs:
+    for proc in cluster.procs:
         pids |= {proc.pid} | {child.pid for child in psutil.Process(proc.pid).children(recursive=True)}
     pids |= set(client.run(os.getpid).values())
     seen = [s for pid in pids for s in sockets(pid)]
