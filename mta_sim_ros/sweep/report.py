@@ -274,8 +274,12 @@ def sobol_indices(spec, df, metric: str, scene: str) -> dict:
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a constant metric: 0/0, the indices NaN
         result = sobol.analyze(design.problem(), y, calc_second_order=True, print_to_console=False, seed=SOBOL_SEED)
-    return {name: {key: float(result[key][i]) for key in ("S1", "S1_conf", "ST", "ST_conf")}
-            for i, name in enumerate(design.factors)}
+    indices = {name: {key: float(result[key][i]) for key in ("S1", "S1_conf", "ST", "ST_conf")}
+               for i, name in enumerate(design.factors)}
+    if not all(math.isfinite(v) for factor in indices.values() for v in factor.values()):
+        fail(metric, f"variance {float(np.var(y)):.3g} over {len(y)} runs of {scene}",
+             "a metric that varies for Sobol indices (SALib's estimators gave non-finite ones)")
+    return indices
 
 
 def _design(spec) -> Design:
