@@ -85,7 +85,7 @@ setup(
     # Tested with 0.59.1 (make test-noble) and 0.68.1 (make test).
     extras_require={
         'jit': ['numba>=0.59.1'],
-        'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56'],
+        'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56', 'sympy>=1.12'],
         # `mta sweep` (mta_sim_ros/sweep/): the Dask engine, Parquet results, the report's tables
         # and Saltelli/Sobol. An extra: the simulator, the node and `mta run` need none of them.
         'sweep': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'pandas>=2.1.4', 'SALib>=1.5.1'],
