@@ -77,6 +77,8 @@ setup(
         # The figures are what `mta analyze` (and so `mta session`, `make run`) is for, and
         # package.xml makes python3-matplotlib a hard dependency of a ROS install too.
         'matplotlib>=3.6.3',
+        # `mta linearize`: exact derivatives of the chain's equations on symbols (linear.py); pure Python
+        'sympy>=1.12',
     ],
     # numba (the compiled kernels, model/kernel.py) is an extra, not a hard requirement: the
     # package runs without it (same results on the Python path, slower), numba's LLVM wheels are
@@ -85,7 +87,7 @@ setup(
     # Tested with 0.59.1 (make test-noble) and 0.68.1 (make test).
     extras_require={
         'jit': ['numba>=0.59.1'],
-        'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56', 'sympy>=1.12'],
+        'test': ['pytest>=7', 'hypothesis>=6.100', 'yourdfpy>=0.0.56'],
         # `mta sweep` (mta_sim_ros/sweep/): the Dask engine, Parquet results, the report's tables
         # and Saltelli/Sobol. An extra: the simulator, the node and `mta run` need none of them.
         'sweep': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'pandas>=2.1.4', 'SALib>=1.5.1'],

@@ -138,6 +138,9 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis", selected)
 
+    add_tool(sub, "linearize", "the train's linear model about straight motion or a steady turn: A, B, eigenvalues",
+             selected)
+
     add_tool(sub, "sweep", "synthesis: many hitching schemes run and compared (Dask), report and export", selected)
 
     add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, "

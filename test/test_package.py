@@ -43,6 +43,7 @@ _ROSDEP_KEYS = {
     'matplotlib': 'python3-matplotlib',
     'numba': 'python3-numba',  # model/compiled.py (optional at run time; also in requirements.txt)
     # mta sweep: rosdistro's keys, and pip keys of the package's own rosdep source (rosdep/mta_sim_ros.yaml)
+    'sympy': 'python3-sympy',
     'pandas': 'python3-pandas',
     'psutil': 'python3-psutil',
     'dask': 'python3-dask-distributed-pip',

@@ -70,8 +70,12 @@ class Chain:
     kapC_d: list
 
 
-def chain(geom: ChainGeometry, heading, psi1: float, V: float, psi1_rate: float) -> Chain:
-    """Walk the train from the tractor back; ``heading`` holds th_1..th_n (rad)."""
+def chain(geom: ChainGeometry, heading, psi1: float, V: float, psi1_rate: float, fn=math) -> Chain:
+    """Walk the train from the tractor back; ``heading`` holds th_1..th_n (rad).
+
+    ``fn`` gives sin, cos, sqrt and atan2: ``math`` for numbers (the reference), or ``sympy`` for
+    the same recursion on symbols (``linear.py``: its exact derivatives; the printed equations),
+    so the symbolic model is this source, not a copy of it."""
     n = len(geom.length)
     kap, psi, kapT, kapB, kapC = [], [], [], [], []
     kap_d, psi_d, kapT_d, kapB_d, kapC_d = [], [], [], [], []
@@ -82,7 +86,7 @@ def chain(geom: ChainGeometry, heading, psi1: float, V: float, psi1_rate: float)
     beta_dot_prev = 0.0
     for k in range(n):
         l_k, lam, mu = geom.length[k], geom.lam[k], geom.mu[k]
-        s, c = math.sin(p_val), math.cos(p_val)
+        s, c = fn.sin(p_val), fn.cos(p_val)
 
         t_val = k_val * s / l_k  # kapT_k
         theta_rate = t_val * V  # th'_k
@@ -94,7 +98,7 @@ def chain(geom: ChainGeometry, heading, psi1: float, V: float, psi1_rate: float)
         b_val = k_val * c  # kapB_k
         b_dot = k_dot * c + k_val * c_dot
 
-        rc = math.sqrt(c * c + mu * mu * s * s)  # s'_Ck / V_k
+        rc = fn.sqrt(c * c + mu * mu * s * s)  # s'_Ck / V_k
         rc_dot = (c * c_dot + mu * mu * s * s_dot) / rc
         kc_val = k_val * rc
         kc_dot = k_dot * rc + k_val * rc_dot
@@ -107,9 +111,9 @@ def chain(geom: ChainGeometry, heading, psi1: float, V: float, psi1_rate: float)
 
         if k + 1 < n:
             rl2 = c * c + lam * lam * s * s
-            rl = math.sqrt(rl2)  # V_{k+1} / V_k
+            rl = fn.sqrt(rl2)  # V_{k+1} / V_k
             rl_dot = (c * c_dot + lam * lam * s * s_dot) / rl
-            beta = math.atan2(lam * s, c)
+            beta = fn.atan2(lam * s, c)
             beta_dot_prev = lam * p_dot / rl2  # d/dt atan2(lam s, c) = lam psi' / (c^2 + lam^2 s^2)
             k_val, k_dot = k_val * rl, k_dot * rl + k_val * rl_dot
             p_val = heading[k] - heading[k + 1] - beta

@@ -1,0 +1,67 @@
+"""``mta linearize TRAIN.yaml``: the train's linear model x' = A x + B u (mta_sim_ros/linear.py).
+
+    mta linearize TRAIN.yaml --about straight --speed V            (V < 0: reversing)
+    mta linearize TRAIN.yaml --about turn --steering PSI --speed V
+
+States: the tractor's lateral offset and heading (about a turn: its radial offset from the steady
+circle and its heading against the circle's tangent), each hitch angle, the steering angle; input:
+the steering command. Exact derivatives (sympy) of the model's own chain equations at the operating
+point; prints A, B and the eigenvalues with what each is, as Markdown; ``--out PREFIX`` also writes
+PREFIX.md, PREFIX.json and PREFIX.npz (A, B, eigenvalues, states).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+
+from ..validate import Range, fail, number_arg, output_file, show
+
+SPEED = Range.of(-100.0, 100.0, "m/s")
+STEERING = Range.of(-math.pi / 2, math.pi / 2, "rad")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("train", help="train YAML (config/trains/*.yaml), or a scene YAML (its train)")
+    p.add_argument("--about", choices=("straight", "turn"), default="straight", help="operating point (default straight)")
+    p.add_argument("--speed", type=number_arg(SPEED), default=3.0, help="V, m/s (negative: reversing; default 3)")
+    p.add_argument("--steering", type=number_arg(STEERING), default=None, help="psi_0 of the steady turn, rad (--about turn)")
+    p.add_argument("--out", help="write PREFIX.md, PREFIX.json and PREFIX.npz too")
+
+
+def main(args: argparse.Namespace) -> int:
+    from ..config import resolve_config_path
+    from ..linear import linearize, markdown
+    from ..model import spec
+    from ..model.loader import load_file
+    from ..model.steady import SteadyStateError
+
+    loaded = load_file(resolve_config_path(args.train))
+    train = loaded.train if isinstance(loaded, spec.Scene) else loaded
+    if args.speed == 0.0:
+        fail("--speed", show(args.speed), "nonzero: a train standing still has no motion to linearize about")
+    if args.about == "turn":
+        if args.steering is None or args.steering == 0.0:
+            fail("--steering", show(args.steering) if args.steering is not None else "(missing)",
+                 "given and nonzero for --about turn (the steady turn's steering angle, rad)")
+        if abs(args.steering) > train.actuator.max_angle:
+            fail("--steering", show(args.steering), f"within the train's max_angle {train.actuator.max_angle:.4g} rad")
+    elif args.steering not in (None, 0.0):
+        fail("--steering", show(args.steering), "left out for --about straight")
+    out = {suffix: output_file(f"{args.out}.{suffix}", "--out") for suffix in ("md", "json", "npz")} if args.out else {}
+    try:
+        model = linearize(train, args.about, args.speed, args.steering or 0.0)
+    except SteadyStateError as err:
+        fail("--steering", show(args.steering), f"a steering angle with a steady turn ({err})")
+    text = markdown(model, train)
+    print(text, end="")
+    if out:
+        out["md"].write_text(text)
+        out["json"].write_text(json.dumps({"train": train.name, **model.as_dict()}, indent=1) + "\n")
+        np.savez(out["npz"], A=model.A, B=model.B, eigenvalues=model.eigenvalues, states=np.array(model.states),
+                 point=model.point, speed=model.speed, steering=model.steering)
+        for path in out.values():
+            print(path)
+    return 0
