@@ -115,6 +115,8 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "follow", "an example controller node: pure pursuit along a field path", selected)
 
+    add_tool(sub, "reverse", "an example controller node: backing the train up a straight line (LQR)", selected)
+
     add_tool(sub, "rsp_feed", "a node setting the simulator's robot_description on robot_state_publisher", selected)
 
     p = sub.add_parser("recover", help="rebuild a readable bag from one cut short (SIGKILL, power loss)")

@@ -1,0 +1,136 @@
+"""Backing a train up a straight line: a state-feedback gain from the linear model, and the closed
+loop run on the simulator. No ROS (``tools/reverse.py`` is the same controller as a ROS node).
+
+Reversing, every hitch angle grows at V / l_k (linear.py: the open loop is unstable). The
+controller steers the tractor so that the last cart's axle B_n follows the line y = 0 (the train
+pointing along +x, driving towards -x): with x = (y, th_1, phi_2..phi_n, psi) the linear model's
+state about straight motion at the speed V < 0 and u the steering command,
+
+    u = -K x,   K = R^-1 B^T P,   P solving A^T P + P A - P B R^-1 B^T P + Q = 0   (LQR, scipy)
+
+with Q = q_offset C^T C + q_hitch sum phi_k^2 + q_heading th_n^2, C x = y_Bn the last axle's lateral
+offset to first order (y_Bn = y - sum of each segment's length times its heading: A_1 to B_1, B_k
+to A_{k+1}, A_k to B_k), R = r. The command is clipped to the actuator's max_angle; nothing else
+is assumed of it, so where the steering the loop asks for passes the actuator's angle or rate
+limit the train folds (the figures say which).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .linear import linearize
+
+
+@dataclass
+class Gains:
+    speed: float
+    K: np.ndarray  # 1 x (n + 2): u = -K x
+    states: list
+    closed_loop: np.ndarray  # eigenvalues of A - B K
+    weights: dict
+
+    def command(self, x: np.ndarray, max_angle: float) -> float:
+        return float(np.clip(-(self.K @ x)[0], -max_angle, max_angle))
+
+
+def last_axle_row(train) -> np.ndarray:
+    """C with C x = the last axle's lateral offset to first order, x = (y, th_1, phi_2..phi_n, psi)."""
+    n = train.n
+    # headings th_k = th_1 - sum_{j<=k} phi_j; each segment's length times its heading
+    lengths = []  # per cart k: the length behind A_k to B_k, plus B_k to A_{k+1} if k < n
+    for k, cart in enumerate(train.carts):
+        lengths.append(cart.length + (cart.hitch_offset if k < n - 1 else 0.0))
+    row = np.zeros(n + 2)
+    row[0] = 1.0
+    for k in range(n):
+        row[1] -= lengths[k]  # th_1's share
+        for j in range(1, k + 1):  # phi_{j+1} enters th_k with a minus sign
+            row[1 + j] += lengths[k]
+    return row
+
+
+def heading_row(train) -> np.ndarray:
+    """D with D x = th_n, the last cart's heading."""
+    row = np.zeros(train.n + 2)
+    row[1] = 1.0
+    row[2:train.n + 1] = -1.0
+    return row
+
+
+def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 10.0, q_heading: float = 10.0,
+           r: float = 1.0) -> Gains:
+    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0)."""
+    from scipy.linalg import solve_continuous_are
+
+    model = linearize(train, "straight", speed)
+    C, D = last_axle_row(train), heading_row(train)
+    Q = q_offset * np.outer(C, C) + q_heading * np.outer(D, D)
+    for k in range(2, train.n + 1):
+        Q[k, k] += q_hitch
+    Q += 1e-9 * np.eye(len(Q))  # the steering angle's own weight: Q positive definite
+    R = np.array([[r]])
+    P = solve_continuous_are(model.A, model.B, Q, R)
+    K = np.linalg.solve(R, model.B.T @ P)
+    closed = np.linalg.eigvals(model.A - model.B @ K)
+    return Gains(speed, K, model.states, closed,
+                 {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r})
+
+
+def state_of(out) -> np.ndarray:
+    """x = (y, th_1, phi_2..phi_n, psi) of an Outputs sample: A_1's y, the headings, the hitch
+    angles, the applied steering angle."""
+    return np.array([out.front[0][1], out.heading[0], *out.hitch_angle, out.steering])
+
+
+@dataclass
+class ReverseRun:
+    distance: float  # m reversed by the last axle (along -x)
+    max_error: float  # m, largest |y_Bn| after the settling distance
+    rms_error: float
+    max_hitch_deg: float
+    max_steering_deg: float
+    stopped: str  # "" or why the run stopped (jackknife)
+    saturated: float  # share of ticks the command hit max_angle
+    trace: np.ndarray  # t, x_Bn, y_Bn, hitch angles..., steering
+
+
+def reverse(scene, gains: Gains, distance: float, settle: float = 0.0, offset: float = 0.0) -> ReverseRun:
+    """Back the scene's train along y = 0 from its start (``offset`` m to the side) until its last
+    axle has reversed ``distance`` m, the gain steering each tick on the state after the last."""
+    from .integrate import IntegrationError
+    from .model.guards import ModelValidityError
+    from .sim import Simulation
+
+    sim = Simulation(scene)
+    sim.y[sim.model.layout.y] += offset
+    max_angle = scene.train.actuator.max_angle
+    out = sim.outputs()
+    x0 = out.axle[-1][0]
+    rows, errors, stopped, saturated = [], [], "", 0
+    while x0 - out.axle[-1][0] < distance:
+        command = gains.command(state_of(out), max_angle)
+        saturated += abs(command) >= max_angle
+        try:
+            sim.advance(command, gains.speed)
+        except (ModelValidityError, IntegrationError) as err:
+            stopped = str(err)
+            break
+        out = sim.outputs()
+        reversed_by = x0 - out.axle[-1][0]
+        rows.append([out.t, out.axle[-1][0], out.axle[-1][1], *out.hitch_angle, out.steering])
+        if reversed_by >= settle:
+            errors.append(out.axle[-1][1])
+        if out.t > 10.0 * distance / abs(gains.speed) + 60.0:
+            stopped = "the train did not reverse the distance (it stood or went forward)"
+            break
+    trace = np.array(rows) if rows else np.zeros((0, 3 + scene.train.n))
+    e = np.abs(np.array(errors)) if errors else np.array([math.nan])
+    n = scene.train.n
+    return ReverseRun(
+        distance=float(x0 - out.axle[-1][0]), max_error=float(e.max()), rms_error=float(np.sqrt(np.mean(e ** 2))),
+        max_hitch_deg=math.degrees(float(np.max(np.abs(trace[:, 3:3 + n - 1])))) if len(trace) and n > 1 else 0.0,
+        max_steering_deg=math.degrees(float(np.max(np.abs(trace[:, -1])))) if len(trace) else 0.0,
+        stopped=stopped, saturated=saturated / max(len(rows), 1), trace=trace)

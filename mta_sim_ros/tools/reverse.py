@@ -1,0 +1,123 @@
+"""``mta reverse``: an example controller node that backs the train up a straight line.
+
+The gain is designed from the linear model (mta_sim_ros/reversing.py: LQR about straight motion at
+the reversing speed, on the last axle's lateral offset, the hitch angles and the last cart's
+heading). The node subscribes ``hitch_poses`` and ``applied_steering`` (the state: A_1's lateral
+offset from the line y = 0 of the node's frame, the headings, hitch angles and the steering
+angle), and answers each pose with one ``ackermann_cmd`` (the steering command and the speed, in
+one message: one command a tick in lockstep). It measures the lateral error of the last cart's
+axle B_n from the line after ``--settle`` m, and stops the train (speed 0) once B_n has reversed
+``--distance`` m; max and RMS error, the largest hitch angle and the steering are logged and, with
+``--report``, written as JSON. A train that folds stops the node's run (its jackknife guard):
+the controller then reports what it saw.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+from ..validate import Range, number_arg, output_file, path_arg
+
+SPEED = Range.of(-20.0, -0.05, "m/s")
+DISTANCE = Range.of(1.0, 10000.0, "m")
+WEIGHT = Range.of(1e-6, 1e6)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scene", default="scenes/reversing.yaml", help="scene giving the train (default scenes/reversing.yaml)")
+    p.add_argument("--speed", type=number_arg(SPEED), default=-1.0, help=f"reversing speed V, m/s ({SPEED.text}; default -1)")
+    p.add_argument("--distance", type=number_arg(DISTANCE), default=60.0, help="m the last axle reverses (default 60)")
+    p.add_argument("--settle", type=number_arg(Range.of(0.0, 10000.0, "m")), default=20.0,
+                   help="m of reversing left out of the error (default 20)")
+    for name, default, what in (("q-offset", 1.0, "the last axle's lateral offset"), ("q-hitch", 10.0, "each hitch angle"),
+                                ("q-heading", 10.0, "the last cart's heading"), ("r", 1.0, "the steering command")):
+        p.add_argument(f"--{name}", type=number_arg(WEIGHT), default=default, help=f"LQR weight of {what} (default {default:g})")
+    p.add_argument("--report", type=path_arg(output_file), help="write the figures to this JSON file")
+
+
+def main(args: argparse.Namespace) -> int:
+    from ackermann_msgs.msg import AckermannDriveStamped
+    from geometry_msgs.msg import PoseArray
+    from rclpy.node import Node
+    from std_msgs.msg import Float64
+
+    from ..config import resolve_config_path
+    from ..model.loader import SpecError, load_scene
+    from ..reversing import design
+    from ..ros_msgs import QOS
+    from .maneuver import spin_until_done
+
+    try:
+        scene = load_scene(resolve_config_path(args.scene))
+    except SpecError as err:
+        print(f"mta reverse: {err}", file=sys.stderr)
+        return 2
+    train = scene.train
+    gains = design(train, args.speed, args.q_offset, args.q_hitch, args.q_heading, args.r)
+    max_angle = train.actuator.max_angle
+
+    class Reverse(Node):
+        def __init__(self):
+            super().__init__("mta_reverse")
+            self.pub = self.create_publisher(AckermannDriveStamped, "ackermann_cmd", QOS)
+            self.create_subscription(Float64, "applied_steering", self._on_steering, QOS)
+            self.create_subscription(PoseArray, "hitch_poses", self._on_poses, QOS)
+            self.psi = 0.0
+            self.start_x = None
+            self.errors: list[float] = []
+            self.hitch, self.steer, self.reversed = 0.0, 0.0, 0.0
+            self.done = False
+            self.figures: dict = {}
+
+        def _on_steering(self, msg) -> None:
+            self.psi = msg.data
+
+        def _on_poses(self, msg) -> None:
+            if self.done or len(msg.poses) != train.n:
+                return
+            th = [2.0 * math.atan2(p.orientation.z, p.orientation.w) for p in msg.poses]
+            phis = [math.atan2(math.sin(th[k - 1] - th[k]), math.cos(th[k - 1] - th[k])) for k in range(1, train.n)]
+            last = msg.poses[-1].position
+            bn = np.array([last.x, last.y]) - train.carts[-1].length * np.array([math.cos(th[-1]), math.sin(th[-1])])
+            if self.start_x is None:
+                self.start_x = bn[0]
+            self.reversed = self.start_x - bn[0]
+            x = np.array([msg.poses[0].position.y, th[0], *phis, self.psi])
+            command = gains.command(x, max_angle)
+            self.hitch = max([self.hitch, *map(abs, phis)])
+            self.steer = max(self.steer, abs(self.psi))
+            if self.reversed >= args.settle:
+                self.errors.append(float(bn[1]))
+            stop = self.reversed >= args.distance
+            out = AckermannDriveStamped()
+            out.drive.steering_angle = command
+            out.drive.speed = 0.0 if stop else gains.speed * math.cos(command)  # the rear axle's speed
+            self.pub.publish(out)
+            self.done = stop
+
+        def finish(self) -> None:
+            e = np.abs(np.array(self.errors)) if self.errors else np.array([math.nan])
+            self.figures = {"reversed_m": self.reversed, "samples": len(self.errors), "max_m": float(e.max()),
+                            "rms_m": float(np.sqrt(np.mean(e ** 2))), "max_hitch_deg": math.degrees(self.hitch),
+                            "max_steering_deg": math.degrees(self.steer), "speed_m_s": gains.speed,
+                            "gain": gains.K.ravel().tolist(), "closed_loop": [str(complex(v)) for v in gains.closed_loop]}
+            self.get_logger().info(
+                f"reversed {self.reversed:.1f} m at {gains.speed:g} m/s: lateral error of '{train.carts[-1].name}' "
+                f"after {args.settle:g} m: max {self.figures['max_m']:.3f} m, RMS {self.figures['rms_m']:.3f} m; "
+                f"largest hitch angle {self.figures['max_hitch_deg']:.1f} deg")
+
+    holder = {}
+
+    def make():
+        holder["node"] = Reverse()
+        return holder["node"]
+
+    code = spin_until_done(make, args.ros_args)
+    if args.report and "node" in holder:
+        with open(args.report, "w") as f:
+            json.dump(holder["node"].figures, f, indent=2)
+    return code
