@@ -17,7 +17,6 @@ the implement is lifted there), and reports max and RMS when the path ends.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 
@@ -31,7 +30,7 @@ from ..model.loader import SpecError, load_scene
 from ..ros_msgs import QOS
 from ..paths import field_path, lateral_error
 from ..validate import Range, Rule, number_arg, output_file, path_arg
-from .maneuver import spin_until_done
+from .maneuver import spin_and_report
 
 #: largest length of the field's passes, their spacing and the look-ahead, m (the path is sampled every 0.25 m)
 FIELD_SIZE = 5000.0
@@ -135,14 +134,5 @@ def main(args: argparse.Namespace) -> int:
         return 2
     path = field_path(args.passes, args.length, args.spacing, x0=ini.x, y0=ini.y)
     settle = args.settle if args.settle is not None else 2.0 * train_length(scene.train)
-    holder = {}
-
-    def make():
-        holder["node"] = PurePursuit(scene.train, path, args.lookahead, settle, scene.train.actuator.max_angle)
-        return holder["node"]
-
-    code = spin_until_done(make, args.ros_args)
-    if args.report and "node" in holder:
-        with open(args.report, "w") as f:
-            json.dump(holder["node"].figures, f, indent=2)
-    return code
+    return spin_and_report(lambda: PurePursuit(scene.train, path, args.lookahead, settle, scene.train.actuator.max_angle),
+                           args.ros_args, args.report)

@@ -124,6 +124,24 @@ def parse_params(items: list[str]) -> dict[str, float]:
     return out
 
 
+def spin_and_report(make_node, ros_args: list[str], report: str | None = None) -> int:
+    """``spin_until_done``, then the node's ``figures`` written as JSON to ``report`` (if given):
+    what the example controllers (follow, reverse) measured."""
+    import json
+
+    holder = {}
+
+    def make():
+        holder["node"] = make_node()
+        return holder["node"]
+
+    code = spin_until_done(make, ros_args)
+    if report and "node" in holder:
+        with open(report, "w") as f:
+            json.dump(holder["node"].figures, f, indent=2)
+    return code
+
+
 def spin_until_done(make_node, ros_args: list[str]) -> int:
     """Spin a node until its ``done`` flag is set or SIGINT/SIGTERM arrives."""
     rclpy.init(args=["mta", *ros_args], signal_handler_options=SignalHandlerOptions.NO)

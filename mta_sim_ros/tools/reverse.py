@@ -14,7 +14,6 @@ the controller then reports what it saw.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 
@@ -49,7 +48,7 @@ def main(args: argparse.Namespace) -> int:
     from ..model.loader import SpecError, load_scene
     from ..reversing import design
     from ..ros_msgs import QOS
-    from .maneuver import spin_until_done
+    from .maneuver import spin_and_report
 
     try:
         scene = load_scene(resolve_config_path(args.scene))
@@ -110,14 +109,4 @@ def main(args: argparse.Namespace) -> int:
                 f"after {args.settle:g} m: max {self.figures['max_m']:.3f} m, RMS {self.figures['rms_m']:.3f} m; "
                 f"largest hitch angle {self.figures['max_hitch_deg']:.1f} deg")
 
-    holder = {}
-
-    def make():
-        holder["node"] = Reverse()
-        return holder["node"]
-
-    code = spin_until_done(make, args.ros_args)
-    if args.report and "node" in holder:
-        with open(args.report, "w") as f:
-            json.dump(holder["node"].figures, f, indent=2)
-    return code
+    return spin_and_report(Reverse, args.ros_args, args.report)
