@@ -10,9 +10,10 @@ state about straight motion at the speed V < 0 and u the steering command,
 
 with Q = q_offset C^T C + q_hitch sum phi_k^2 + q_heading th_n^2, C x = y_Bn the last axle's lateral
 offset to first order (y_Bn = y - sum of each segment's length times its heading: A_1 to B_1, B_k
-to A_{k+1}, A_k to B_k), R = r. The command is clipped to the actuator's max_angle; nothing else
-is assumed of it, so where the steering the loop asks for passes the actuator's angle or rate
-limit the train folds (the figures say which).
+to A_{k+1}, A_k to B_k), R = r. The gain sees the last axle at most MAX_ERROR from the line (the
+line moved towards the train by the rest), and the command is clipped to the actuator's
+max_angle; where the steering the loop asks for still passes the actuator's angle or rate limit
+the train folds (mta bench reverse says where).
 """
 from __future__ import annotations
 
@@ -24,6 +25,12 @@ import numpy as np
 from .linear import linearize
 
 
+#: m: the largest lateral error of the last axle the gain is shown (farther away, the line is
+#: moved towards the train by the difference): the linear gain's steering for a large offset would
+#: pass the actuator's angle, and the train fold
+MAX_ERROR = 0.5
+
+
 @dataclass
 class Gains:
     speed: float
@@ -31,8 +38,16 @@ class Gains:
     states: list
     closed_loop: np.ndarray  # eigenvalues of A - B K
     weights: dict
+    C: np.ndarray  # the last axle's lateral offset, C x
+    max_error: float = MAX_ERROR
 
     def command(self, x: np.ndarray, max_angle: float) -> float:
+        """u = -K x clipped to the actuator's max_angle, x taken with the last axle at most
+        ``max_error`` from the line (x's lateral offset moved so)."""
+        offset = float(self.C @ x)
+        if abs(offset) > self.max_error:
+            x = x.copy()
+            x[0] -= offset - math.copysign(self.max_error, offset)
         return float(np.clip(-(self.K @ x)[0], -max_angle, max_angle))
 
 
@@ -76,7 +91,7 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     K = np.linalg.solve(R, model.B.T @ P)
     closed = np.linalg.eigvals(model.A - model.B @ K)
     return Gains(speed, K, model.states, closed,
-                 {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r})
+                 {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}, C)
 
 
 def state_of(out) -> np.ndarray:
