@@ -140,6 +140,8 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "session", "the main job: node + manoeuvre headless, then the bag's analysis", selected)
 
+    add_tool(sub, "equations", "the scheme's equations of motion as the article states them (sympy)", selected)
+
     add_tool(sub, "linearize", "the train's linear model about straight motion or a steady turn: A, B, eigenvalues",
              selected)
 

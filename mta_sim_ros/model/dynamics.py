@@ -123,7 +123,7 @@ class Model:
 
         v0 = self.train.smoothing_speed
         resistance = [r.force(kb * V, v0) for r, kb in zip(self.resistances, ch.kapB)]
-        generalized_resistance = sum(f * kb for f, kb in zip(resistance, ch.kapB))
+        generalized_resistance = resistance_force(resistance, ch.kapB)
         traction, acceleration, governor_rate = self._traction(mass, velocity_term, generalized_resistance,
                                                                V, v_set, z)
         return Terms(ch, mass, velocity_term, resistance, traction, psi_rate, acceleration, governor_rate)
@@ -141,17 +141,12 @@ class Model:
                 traction, governor_rate = forces.governor(traction_spec, V, v_set, z)
             else:
                 traction = traction_spec.force
-            acceleration = (traction - generalized_resistance - velocity_term) / mass
+            acceleration = cauchy_acceleration(traction, generalized_resistance, velocity_term, mass)
         return traction, acceleration, governor_rate
 
     def _direct(self, ch: Chain, V: float) -> tuple[float, float]:
-        """Algorithm 2: M = sum m kapC^2 + J kapT^2 and R = 1/2 M' V, M' exact from the chain."""
-        mass = 0.0
-        mass_rate = 0.0
-        for m, J, kc, kc_d, kt, kt_d in zip(self.masses, self.inertias, ch.kapC, ch.kapC_d, ch.kapT, ch.kapT_d):
-            mass += m * kc * kc + J * kt * kt
-            mass_rate += 2.0 * (m * kc * kc_d + J * kt * kt_d)
-        return mass, 0.5 * mass_rate * V
+        """Algorithm 2 (``mass_terms``)."""
+        return mass_terms(self.masses, self.inertias, ch, V)
 
     def derivative(self, y, command: float, v_set: float) -> tuple[np.ndarray, Terms]:
         """y' and the terms it came from."""
@@ -187,3 +182,27 @@ class Model:
         applied = tm.traction * V - sum(f * kb * V for f, kb in zip(tm.resistance, tm.chain.kapB))
         dT_dt = tm.mass * V * tm.acceleration + tm.velocity_term * V  # d/dt(1/2 M V^2) = M V V' + 1/2 M' V^2
         return applied, dT_dt
+
+
+# -- the equations of algorithm 2, on numbers or on symbols (equations.py prints these) ----------------
+
+def mass_terms(masses, inertias, ch: Chain, V):
+    """Algorithm 2: (M, R) with M = sum m_k kapC_k^2 + J_k kapT_k^2 and R = 1/2 M' V, M' exact from
+    the chain's rates: the inertial elements (m_k, s'_Ck) and (J_k, th'_k) of the article."""
+    mass = 0.0
+    mass_rate = 0.0
+    for m, J, kc, kc_d, kt, kt_d in zip(masses, inertias, ch.kapC, ch.kapC_d, ch.kapT, ch.kapT_d):
+        mass += m * kc * kc + J * kt * kt
+        mass_rate += 2.0 * (m * kc * kc_d + J * kt * kt_d)
+    return mass, 0.5 * mass_rate * V
+
+
+def resistance_force(resistance, kapB):
+    """sum_k F_Bk kapB_k: the resistances' share of the generalized force Q = F_A1 - sum F_Bk kapB_k
+    (the force elements (F_Bk, s'_Bk))."""
+    return sum(f * kb for f, kb in zip(resistance, kapB))
+
+
+def cauchy_acceleration(traction, generalized_resistance, velocity_term, mass):
+    """V' of the Cauchy form: M V' = F_A1 - sum F_Bk kapB_k - 1/2 M' V."""
+    return (traction - generalized_resistance - velocity_term) / mass

@@ -1,0 +1,123 @@
+"""The printed equations (equations.py, mta equations) evaluate to the numeric model: V' parsed
+back from the printed text (1 and 2 carts) and the built expression (up to 5 carts), with the
+train's numbers and the kernel's forces, against the kernel's y' on random states, to 1e-12."""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from mta_sim_ros import cli, equations
+from mta_sim_ros.config import resolve_config_path
+from mta_sim_ros.model import kernel, loader
+
+TRAINS = ["single_tractor", "offset_hitch", "light_tractor_heavy_cart", "default", "long_train"]
+
+
+def load(name):
+    return loader.load_train(resolve_config_path(f"trains/{name}.yaml"))
+
+
+def random_state(rng, train):
+    n = train.n
+    heading = [rng.uniform(-math.pi, math.pi)]
+    for _ in range(n - 1):
+        heading.append(heading[-1] - rng.uniform(-0.8, 0.8))
+    psi = rng.uniform(-0.6, 0.6)
+    V = rng.choice([-1.0, 1.0]) * rng.uniform(0.2, 6.0)
+    return np.array([rng.uniform(-9, 9), rng.uniform(-9, 9), *heading, psi, V, rng.uniform(-3e4, 3e4)]), \
+        rng.uniform(-0.7, 0.7)
+
+
+def kernel_point(train, y, command):
+    """(values of the state symbols and forces, the kernel's V') at a state: F_A1 and F_Bk as the
+    kernel's outputs give them, psi_1' its right-hand side's."""
+    P = kernel.pack(train)
+    dy = kernel.rhs_of(P, y, command, 3.0)
+    cart, sc = kernel.outputs_of(P, y, command, 3.0)
+    n = train.n
+    values = {f"theta_{k + 1}": y[2 + k] for k in range(n)}
+    values.update({"psi_1": y[n + 2], "V": y[n + 3], "dpsi_1": dy[n + 2], "F_A1": sc[kernel.TRACTION]})
+    values.update({f"F_B{k + 1}": cart[k, kernel.RES] for k in range(n)})
+    return values, dy[n + 3]
+
+
+_COMPILED: dict = {}
+
+
+def evaluate(expr, eq, values):
+    """expr at the train's numbers and ``values`` (lambdify, floats)."""
+    names = sorted(values)
+    key = (eq.train.name, id(expr), tuple(names))  # the same symbols, another train: other numbers
+    if key not in _COMPILED:
+        _COMPILED[key] = (expr, sp.lambdify([eq.symbols[n] for n in names], expr.subs(eq.values), "math"))
+    return float(_COMPILED[key][1](*(values[n] for n in names)))
+
+
+@pytest.mark.parametrize("name", TRAINS)
+def test_the_built_acceleration_is_the_kernels(name):
+    train = load(name)
+    eq = equations.build(train)
+    rng = np.random.default_rng(len(name))
+    for _ in range(6):
+        y, command = random_state(rng, train)
+        values, expected = kernel_point(train, y, command)
+        assert evaluate(eq.acceleration, eq, values) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["single_tractor", "offset_hitch", "light_tractor_heavy_cart"])
+def test_the_printed_acceleration_parsed_back_is_the_kernels(name, capsys):
+    """The V' line that ``mta equations`` prints, read back by sympy from the text alone."""
+    train = load(name)
+    assert cli.main(["equations", f"trains/{name}.yaml"]) == 0
+    text = capsys.readouterr().out
+    [line] = [l for l in text.splitlines() if l.startswith("V' = ")]
+    eq = equations.build(train)
+    printed = sp.sympify(line[len("V' = "):], locals=eq.symbols)
+    rng = np.random.default_rng(7)
+    for _ in range(6):
+        y, command = random_state(rng, train)
+        values, expected = kernel_point(train, y, command)
+        assert evaluate(printed, eq, values) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    # and the structural matrices' entries are the kernel's chain
+    P = kernel.pack(train)
+    y, command = random_state(rng, train)
+    values, _ = kernel_point(train, y, command)
+    cart, _ = kernel.outputs_of(P, y, command, 3.0)
+    for k in range(train.n):
+        for key, column in (("kapC", kernel.KAPC), ("kapT", kernel.KAPT), ("kapB", kernel.KAPB)):
+            [entry] = [l for l in text.splitlines() if l.startswith(f"{key}_{k + 1} = ")]
+            value = evaluate(sp.sympify(entry.split(" = ", 1)[1], locals=eq.symbols), eq, values)
+            assert value == pytest.approx(cart[k, column], rel=1e-12, abs=1e-14)
+
+
+def test_the_recursion_printed_is_the_chain():
+    """The printed step, cart k from cart k-1, composed twice for the default unit gives the kernel's
+    th'_3 (the recursion is the chain's, on symbols)."""
+    train = load("default")
+    eq = equations.build(train)
+    rec = eq.recursion
+    rng = np.random.default_rng(11)
+    y, command = random_state(rng, train)
+    P = kernel.pack(train)
+    cart, _ = kernel.outputs_of(P, y, command, 3.0)
+    psi, V = y[5], y[6]
+    sym = {str(s): s for e in rec.values() for s in e.free_symbols}
+    for k in range(1, train.n):
+        prev, cur = train.carts[k - 1], train.carts[k]
+        at = {sym["psi_{k-1}"]: psi, sym["V_{k-1}"]: V, sym["theta_{k-1}"]: y[1 + k], sym["theta_k"]: y[2 + k],
+              sym["l_{k-1}"]: prev.length, sym["a_{k-1}"]: prev.hitch_offset}
+        psi, V = float(rec["psi_k"].subs(at)), float(rec["V_k"].subs(at))
+        own = {sym["psi_k"]: psi, sym["V_k"]: V, sym["l_k"]: cur.length, sym["c_k"]: cur.com_offset}
+        assert float(rec["theta'_k"].subs(own)) == pytest.approx(cart[k, kernel.VT], rel=1e-12)
+        assert float(rec["s'_Ck"].subs(own)) == pytest.approx(cart[k, kernel.VC], rel=1e-12)
+
+
+def test_latex_and_numbers(capsys):
+    assert cli.main(["equations", "trains/offset_hitch.yaml", "--format", "latex", "--numbers"]) == 0
+    text = capsys.readouterr().out
+    assert "\\begin{align*}" in text and "l_{1}" not in text.split("## Structural matrices")[1]
+    assert re.search(r"V' &= ", text)
