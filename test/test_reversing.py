@@ -71,10 +71,12 @@ def test_without_the_controller_the_train_folds():
     assert "jackknife" in run.stopped and run.distance < 100.0
 
 
-def test_mta_reverse_backs_the_node_up_over_dds_in_lockstep(tmp_path):
-    """The node (lockstep, recording) and ``mta reverse`` as two processes over DDS: the controller
-    reports the seeder within 5 cm of the line over the last 25 of 45 m reversed, and the node's bag,
-    read independently (rosbags), shows the same: the largest |y| of B_n after 20 m."""
+@pytest.mark.parametrize("lockstep", [True, False], ids=["lockstep", "free-running"])
+def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, lockstep):
+    """The node (recording; in lockstep, or free-running at 4x real time) and ``mta reverse`` as two
+    processes over DDS: the controller reports the seeder within 5 cm of the line over the last 25
+    of 45 m reversed, and the node's bag, read independently (rosbags), shows the same: the largest
+    |y| of B_n after 20 m."""
     from dds import Probe, start_node, stop, write_params
     from test_drive import mta
     from test_node import bags_in, read_bag
@@ -84,8 +86,9 @@ def test_mta_reverse_backs_the_node_up_over_dds_in_lockstep(tmp_path):
     scene["initial"] = {"y": 0.3, "speed": -1.0, "hitch_angles_deg": [2, -2]}
     scene_path = tmp_path / "backing.yaml"
     scene_path.write_text(yaml.safe_dump(scene))
+    pacing = {"lockstep": True, "lockstep_timeout": 5.0} if lockstep else {"real_time_factor": 4.0}
     params = write_params(tmp_path / "p.yaml", scene_file=str(scene_path), bag_dir=str(tmp_path / "bags"),
-                          publish_rate=50.0, lockstep=True, lockstep_timeout=5.0, record=True)
+                          publish_rate=50.0, record=True, **pacing)
     node = start_node(params, tmp_path / "node.log")
     probe = Probe()
     report = tmp_path / "reverse.json"
