@@ -112,6 +112,17 @@ class ReverseRun:
     trace: np.ndarray  # t, x_Bn, y_Bn, hitch angles..., steering
 
 
+def _run(distance: float, rows: list, errors: list, stopped: str, saturated: int, n: int) -> ReverseRun:
+    """A ReverseRun of a closed loop's trace rows (t, B_n x, y, hitch angles, steering) and errors."""
+    trace = np.array(rows) if rows else np.zeros((0, 3 + n))
+    e = np.abs(np.array(errors)) if errors else np.array([math.nan])
+    return ReverseRun(
+        distance=distance, max_error=float(e.max()), rms_error=float(np.sqrt(np.mean(e ** 2))),
+        max_hitch_deg=math.degrees(float(np.max(np.abs(trace[:, 3:3 + n - 1])))) if len(trace) and n > 1 else 0.0,
+        max_steering_deg=math.degrees(float(np.max(np.abs(trace[:, -1])))) if len(trace) else 0.0,
+        stopped=stopped, saturated=saturated / max(len(rows), 1), trace=trace)
+
+
 def reverse(scene, gains: Gains, distance: float, settle: float = 0.0, offset: float = 0.0) -> ReverseRun:
     """Back the scene's train along y = 0 from its start (``offset`` m to the side) until its last
     axle has reversed ``distance`` m, the gain steering each tick on the state after the last."""
@@ -141,11 +152,111 @@ def reverse(scene, gains: Gains, distance: float, settle: float = 0.0, offset: f
         if out.t > 10.0 * distance / abs(gains.speed) + 60.0:
             stopped = "the train did not reverse the distance (it stood or went forward)"
             break
-    trace = np.array(rows) if rows else np.zeros((0, 3 + scene.train.n))
-    e = np.abs(np.array(errors)) if errors else np.array([math.nan])
-    n = scene.train.n
-    return ReverseRun(
-        distance=float(x0 - out.axle[-1][0]), max_error=float(e.max()), rms_error=float(np.sqrt(np.mean(e ** 2))),
-        max_hitch_deg=math.degrees(float(np.max(np.abs(trace[:, 3:3 + n - 1])))) if len(trace) and n > 1 else 0.0,
-        max_steering_deg=math.degrees(float(np.max(np.abs(trace[:, -1])))) if len(trace) else 0.0,
-        stopped=stopped, saturated=saturated / max(len(rows), 1), trace=trace)
+    return _run(float(x0 - out.axle[-1][0]), rows, errors, stopped, saturated, scene.train.n)
+
+
+# -- along a gentle curve -----------------------------------------------------------------------------
+
+def steering_for(train, radius: float) -> float:
+    """The steering angle psi_0 > 0 whose steady circles put the last axle on ``radius`` (m, a left
+    turn; negate it for a right one): R_Bn falls as psi grows, found by bisection on the closed form."""
+    from .model.steady import SteadyStateError, steady_circle
+
+    lo, hi = 1e-6, train.actuator.max_angle
+    try:
+        if steady_circle(train, hi).R_B[-1] > radius:
+            raise ValueError(f"radius: {radius:g} m is tighter than the steady turn at max_angle allows")
+    except SteadyStateError:
+        pass  # no steady turn at max_angle: the root lies below it
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        try:
+            r = steady_circle(train, mid).R_B[-1]
+        except SteadyStateError:
+            hi = mid
+            continue
+        lo, hi = (mid, hi) if r > radius else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+@dataclass
+class CurveGains:
+    """u = psi_0 - K (x - x_0), x = (rho, eta, phi_2..phi_n, psi) about the steady reversing turn."""
+
+    speed: float
+    steering: float  # psi_0
+    K: np.ndarray
+    point: np.ndarray  # x_0
+    closed_loop: np.ndarray
+    R_A1: float  # the tractor's steered axle's circle
+    radius: float  # the last axle's
+
+    def command(self, x: np.ndarray, max_angle: float) -> float:
+        return float(np.clip(self.steering - (self.K @ (x - self.point))[0], -max_angle, max_angle))
+
+
+def design_curve(train, speed: float, radius: float, side: float = 1.0, q_offset: float = 1.0,
+                 q_hitch: float = 10.0, q_heading: float = 10.0, r: float = 1.0) -> CurveGains:
+    """LQR about the steady turn that puts the last axle on a circle of ``radius`` (``side`` +1
+    left, -1 right), reversing at ``speed`` < 0: the linear model about that turn (linear.py),
+    weights on the tractor's radial offset and heading and on each hitch angle's deviation."""
+    from scipy.linalg import solve_continuous_are
+
+    from .model.steady import steady_circle
+
+    psi0 = math.copysign(steering_for(train, radius), side)
+    model = linearize(train, "turn", speed, psi0)
+    size = train.n + 2
+    Q = np.zeros((size, size))
+    Q[0, 0], Q[1, 1] = q_offset, q_heading
+    for k in range(2, train.n + 1):
+        Q[k, k] = q_hitch
+    Q += 1e-9 * np.eye(size)
+    R = np.array([[r]])
+    P = solve_continuous_are(model.A, model.B, Q, R)
+    K = np.linalg.solve(R, model.B.T @ P)
+    return CurveGains(speed, psi0, K, model.point, np.linalg.eigvals(model.A - model.B @ K),
+                      steady_circle(train, psi0).R_A[0], radius)
+
+
+def curve_state(out, gains: CurveGains, centre) -> np.ndarray:
+    """x = (rho, eta, phi..., psi) of an Outputs sample about the circle of centre ``centre``."""
+    ax, ay = out.front[0][0] - centre[0], out.front[0][1] - centre[1]
+    alpha = math.atan2(ay, ax)
+    eta = out.heading[0] - alpha
+    eta = gains.point[1] + math.remainder(eta - gains.point[1], 2 * math.pi)
+    return np.array([math.hypot(ax, ay) - gains.R_A1, eta, *out.hitch_angle, out.steering])
+
+
+def reverse_curve(scene, gains: CurveGains, centre, distance: float, settle: float = 0.0) -> ReverseRun:
+    """Back the scene's train around the circle of ``centre`` until its last axle has travelled
+    ``distance`` m of arc; the error is the last axle's radial offset from ``gains.radius``."""
+    from .integrate import IntegrationError
+    from .model.guards import ModelValidityError
+    from .sim import Simulation
+
+    sim = Simulation(scene)
+    max_angle = scene.train.actuator.max_angle
+    out = sim.outputs()
+    travelled, rows, errors, stopped, saturated = 0.0, [], [], "", 0
+    last = np.array(out.axle[-1])
+    while travelled < distance:
+        command = gains.command(curve_state(out, gains, centre), max_angle)
+        saturated += abs(command) >= max_angle
+        try:
+            sim.advance(command, gains.speed)
+        except (ModelValidityError, IntegrationError) as err:
+            stopped = str(err)
+            break
+        out = sim.outputs()
+        here = np.array(out.axle[-1])
+        travelled += float(np.hypot(*(here - last)))
+        last = here
+        error = math.hypot(here[0] - centre[0], here[1] - centre[1]) - gains.radius
+        rows.append([out.t, here[0], here[1], *out.hitch_angle, out.steering])
+        if travelled >= settle:
+            errors.append(error)
+        if out.t > 10.0 * distance / abs(gains.speed) + 60.0:
+            stopped = "the train did not travel the distance"
+            break
+    return _run(travelled, rows, errors, stopped, saturated, scene.train.n)

@@ -14,6 +14,8 @@ import dataclasses
 import math
 from pathlib import Path
 
+import numpy as np
+
 from ...validate import output_file, path_arg
 from .common import header_lines, table, write_report
 
@@ -38,28 +40,48 @@ def scene(train, speed: float, offset: float, distance: float = 100.0):
     return loader.scene_from_data(data, "backing scene", train)
 
 
+def curve_scene(train, gains, offset: float = 0.3):
+    """The train on its steady reversing circle about the origin, A_1 ``offset`` m outside it."""
+    from ...model import loader
+    from ...model.steady import steady_circle
+
+    initial = {"x": gains.R_A1 + offset, "y": 0.0, "heading": float(gains.point[1]), "speed": gains.speed,
+               "steering": gains.steering,
+               "hitch_angles": [float(v) for v in steady_circle(train, gains.steering).hitch_angles]}
+    data = {"name": "curve", "train": "unused.yaml", "duration": 1000 / abs(gains.speed) + 60, "initial": initial,
+            "steering": {"maneuver": "straight"}, "speed": gains.speed,
+            "integrator": {"method": "rk4", "step": 0.01}, "publish_rate": 50, "fidelity": "dynamic"}
+    return loader.scene_from_data(data, "curve scene", train)
+
+
 def scaled(train, factor: float):
     carts = tuple(dataclasses.replace(c, length=c.length * factor, hitch_offset=c.hitch_offset * factor,
                                       com_offset=c.com_offset * factor) for c in train.carts)
     return dataclasses.replace(train, carts=carts, name=f"{train.name} x{factor:g}")
 
 
-def within(run, bound: float = 0.05) -> str:
-    """m the last axle reversed until its error stayed within ``bound`` ('-' if it never did)."""
+def within(run, bound: float = 0.05, radius: float | None = None) -> str:
+    """m the last axle travelled until its error stayed within ``bound`` ('-' if it never did): the
+    error its y (straight), or its radial offset from ``radius`` about the origin (a circle)."""
     t = run.trace
     if run.stopped or not len(t):
         return "-"
-    outside = [i for i in range(len(t)) if abs(t[i, 2]) >= bound]
-    if not outside:
+    if radius is None:
+        error, along = t[:, 2], t[0, 1] - t[:, 1]
+    else:
+        error = np.hypot(t[:, 1], t[:, 2]) - radius
+        along = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(t[:, 1]), np.diff(t[:, 2])))))
+    outside = np.flatnonzero(np.abs(error) >= bound)
+    if not outside.size:
         return "0"
     if outside[-1] == len(t) - 1:
         return "-"
-    return f"{t[0, 1] - t[outside[-1] + 1, 1]:.0f}"
+    return f"{along[outside[-1] + 1]:.0f}"
 
 
-def row(label: str, run) -> tuple:
+def row(label: str, run, radius: float | None = None) -> tuple:
     verdict = "holds" if not run.stopped else "folds: " + run.stopped.split(";")[0].split(" (limit")[0]
-    return (label, f"{run.distance:.0f}", within(run), f"{run.max_error * 100:.1f}", f"{run.rms_error * 100:.1f}",
+    return (label, f"{run.distance:.0f}", within(run, radius=radius), f"{run.max_error * 100:.1f}", f"{run.rms_error * 100:.1f}",
             f"{run.max_hitch_deg:.1f}", f"{run.max_steering_deg:.1f}", f"{100 * run.saturated:.0f}", verdict)
 
 
@@ -70,7 +92,7 @@ HEADER = ["run", "reversed, m", "until within 5 cm, m", "max error after 30 m, c
 def main(args) -> int:
     from ...config import resolve_config_path
     from ...model.loader import load_train
-    from ...reversing import MAX_ERROR, design, reverse
+    from ...reversing import MAX_ERROR, design, design_curve, reverse, reverse_curve
 
     train = load_train(resolve_config_path("trains/default.yaml"))
     lines = header_lines("Backing up: where the reversing controller holds", args)
@@ -110,6 +132,21 @@ def main(args) -> int:
               "The linear gain shown the whole of a large offset asks for more steering than the actuator's "
               "40 deg: saturated, the loop is no longer the designed one and the train folds. Bent hitches "
               "at the start likewise.", "", *table(rows, HEADER, "lrrrrrrrl"), ""]
+    rows = []
+    for radius, side, speed in ((100.0, 1.0, -1.0), (50.0, 1.0, -1.0), (50.0, -1.0, -3.0), (30.0, 1.0, -1.0),
+                                (20.0, 1.0, -1.0), (15.0, 1.0, -1.0)):
+        label = f"circle of {radius:g} m ({'left' if side > 0 else 'right'}), {speed:g} m/s"
+        try:
+            gains = design_curve(train, speed, radius, side)
+        except ValueError as err:
+            rows.append((label, "-", "-", "-", "-", "-", "-", "-", f"no steady turn: {err}"))
+            continue
+        run = reverse_curve(curve_scene(train, gains), gains, (0.0, 0.0), 100.0, settle=30.0)
+        rows.append(row(label + f": psi_0 {math.degrees(gains.steering):.2f} deg", run, radius))
+        print(rows[-1], flush=True)
+    lines += ["## Along a curve (the gain designed about the steady reversing turn; 0.3 m outside the circle)", "",
+              "The error is the last axle's radial offset from its circle; 'until within 5 cm' counts arc length.", "",
+              *table(rows, HEADER, "lrrrrrrrl"), ""]
     trajectory = reverse(scene(train, -1.0, 2.0), design(train, -1.0), 100.0, settle=30.0)
     plot(trajectory, train, Path(args.plot))
     lines += [f"![the paths](../{Path(args.plot).name})" if Path(args.plot).parent.name == "docs" else
