@@ -126,33 +126,45 @@ def _run(distance: float, rows: list, errors: list, stopped: str, saturated: int
 def reverse(scene, gains: Gains, distance: float, settle: float = 0.0, offset: float = 0.0) -> ReverseRun:
     """Back the scene's train along y = 0 from its start (``offset`` m to the side) until its last
     axle has reversed ``distance`` m, the gain steering each tick on the state after the last."""
+    def shift(sim):
+        sim.y[sim.model.layout.y] += offset
+
+    return drive(scene, gains, state_of, lambda before, after: before.axle[-1][0] - after.axle[-1][0],
+                 lambda out: out.axle[-1][1], distance, settle, shift)
+
+
+def drive(scene, gains, state, progress, error, distance: float, settle: float, setup=None) -> ReverseRun:
+    """The closed loop on the simulator: each tick steers ``gains.command(state(outputs))`` at
+    ``gains.speed``; ``progress(before, after)`` is the distance a tick adds (m), ``error(outputs)`` the
+    last axle's error, kept after ``settle`` m; until ``distance`` m, a guard stops the run (its reason
+    kept), or the train makes no headway."""
     from .integrate import IntegrationError
     from .model.guards import ModelValidityError
     from .sim import Simulation
 
     sim = Simulation(scene)
-    sim.y[sim.model.layout.y] += offset
+    if setup is not None:
+        setup(sim)
     max_angle = scene.train.actuator.max_angle
     out = sim.outputs()
-    x0 = out.axle[-1][0]
-    rows, errors, stopped, saturated = [], [], "", 0
-    while x0 - out.axle[-1][0] < distance:
-        command = gains.command(state_of(out), max_angle)
+    travelled, rows, errors, stopped, saturated = 0.0, [], [], "", 0
+    while travelled < distance:
+        command = gains.command(state(out), max_angle)
         saturated += abs(command) >= max_angle
         try:
             sim.advance(command, gains.speed)
         except (ModelValidityError, IntegrationError) as err:
             stopped = str(err)
             break
-        out = sim.outputs()
-        reversed_by = x0 - out.axle[-1][0]
+        before, out = out, sim.outputs()
+        travelled += float(progress(before, out))
         rows.append([out.t, out.axle[-1][0], out.axle[-1][1], *out.hitch_angle, out.steering])
-        if reversed_by >= settle:
-            errors.append(out.axle[-1][1])
+        if travelled >= settle:
+            errors.append(error(out))
         if out.t > 10.0 * distance / abs(gains.speed) + 60.0:
             stopped = "the train did not reverse the distance (it stood or went forward)"
             break
-    return _run(float(x0 - out.axle[-1][0]), rows, errors, stopped, saturated, scene.train.n)
+    return _run(travelled, rows, errors, stopped, saturated, scene.train.n)
 
 
 # -- along a gentle curve -----------------------------------------------------------------------------
@@ -231,32 +243,8 @@ def curve_state(out, gains: CurveGains, centre) -> np.ndarray:
 def reverse_curve(scene, gains: CurveGains, centre, distance: float, settle: float = 0.0) -> ReverseRun:
     """Back the scene's train around the circle of ``centre`` until its last axle has travelled
     ``distance`` m of arc; the error is the last axle's radial offset from ``gains.radius``."""
-    from .integrate import IntegrationError
-    from .model.guards import ModelValidityError
-    from .sim import Simulation
-
-    sim = Simulation(scene)
-    max_angle = scene.train.actuator.max_angle
-    out = sim.outputs()
-    travelled, rows, errors, stopped, saturated = 0.0, [], [], "", 0
-    last = np.array(out.axle[-1])
-    while travelled < distance:
-        command = gains.command(curve_state(out, gains, centre), max_angle)
-        saturated += abs(command) >= max_angle
-        try:
-            sim.advance(command, gains.speed)
-        except (ModelValidityError, IntegrationError) as err:
-            stopped = str(err)
-            break
-        out = sim.outputs()
-        here = np.array(out.axle[-1])
-        travelled += float(np.hypot(*(here - last)))
-        last = here
-        error = math.hypot(here[0] - centre[0], here[1] - centre[1]) - gains.radius
-        rows.append([out.t, here[0], here[1], *out.hitch_angle, out.steering])
-        if travelled >= settle:
-            errors.append(error)
-        if out.t > 10.0 * distance / abs(gains.speed) + 60.0:
-            stopped = "the train did not travel the distance"
-            break
-    return _run(travelled, rows, errors, stopped, saturated, scene.train.n)
+    return drive(scene, gains, lambda out: curve_state(out, gains, centre),
+                 lambda before, after: math.hypot(after.axle[-1][0] - before.axle[-1][0],
+                                                  after.axle[-1][1] - before.axle[-1][1]),
+                 lambda out: math.hypot(out.axle[-1][0] - centre[0], out.axle[-1][1] - centre[1]) - gains.radius,
+                 distance, settle)

@@ -121,19 +121,28 @@ def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, lockstep, radius):
     pacing = {"lockstep": True, "lockstep_timeout": 5.0} if lockstep else {"real_time_factor": 4.0}
     params = write_params(tmp_path / "p.yaml", scene_file=str(scene_path), bag_dir=str(tmp_path / "bags"),
                           publish_rate=50.0, record=True, **pacing)
-    node = start_node(params, tmp_path / "node.log")
-    probe = Probe()
     report = tmp_path / "reverse.json"
+    # the controller first: free-running, the node reverses from its first tick on, and a train left
+    # unsteered while a controller starts would fold (the hitch modes grow at V / l_k)
+    controller = mta("reverse", "--scene", scene_path, "--distance", 45, "--settle", 20, "--report", report, *extra)
+    probe = Probe()
+    node = None
     try:
-        controller = mta("reverse", "--scene", scene_path, "--distance", 45, "--settle", 20, "--report", report, *extra)
-        assert probe.spin_until(lambda: controller.poll() is not None or node.poll() is not None, 600.0), \
+        # its gain designed and its publisher in the graph before the node's first tick
+        assert probe.spin_until(lambda: probe.node.count_publishers("/ackermann_cmd") > 0 or
+                                controller.poll() is not None, 120.0), "the controller did not start"
+        node = start_node(params, tmp_path / "node.log")
+        assert probe.spin_until(lambda: controller.poll() is not None or node.poll() is not None, 240.0), \
             "the controller did not finish"
         output = controller.stdout.read()
         assert controller.returncode == 0, output
         assert "lateral error of 'seeder'" in output
     finally:
-        assert stop(node) == 0
+        if controller.poll() is None:
+            controller.kill()
+            controller.wait()
         probe.close()
+        assert node is None or stop(node) == 0
     figures = json.loads(report.read_text())
     assert figures["reversed_m"] >= 45.0 and figures["max_m"] < 0.05, figures
     assert figures["max_hitch_deg"] < 10.0
