@@ -45,7 +45,7 @@ from .integrate.steppers import FixedStep
 from .messages.markers import cart_widths
 from .model import kernel
 from .model.guards import ModelValidityError, check_state
-from .sim import Simulation, speed_setpoint
+from .sim import Simulation, speed_setpoints, table_values
 from .urdf import box_of
 
 #: the verdicts of a run
@@ -69,12 +69,8 @@ def scheduled_inputs(scene, sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
     ``Simulation.scheduled_inputs`` samples them one tick at a time (np.interp at the same points)."""
     ticks = int(math.floor(scene.duration / sim.tick + 1e-9))
     t = np.arange(ticks) * sim.tick
-    commands = np.interp(t, scene.steering.time, scene.steering.value)
-    if scene.speed is None:
-        v_sets = np.full(ticks, speed_setpoint(scene, 0.0))
-    else:
-        v_sets = np.interp(t, scene.speed.time, scene.speed.value)
-    return np.ascontiguousarray(commands, dtype=np.float64), np.ascontiguousarray(v_sets, dtype=np.float64)
+    return (np.ascontiguousarray(table_values(scene.steering, t), dtype=np.float64),
+            np.ascontiguousarray(speed_setpoints(scene, t), dtype=np.float64))
 
 
 def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int, Exception | None]:

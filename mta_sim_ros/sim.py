@@ -29,7 +29,7 @@ from .model.spec import Scene, Table
 NO_JIT_ENV = jit.NO_JIT_ENV  # set to 1: Simulation(compiled=None) runs the kernels as plain Python
 
 __all__ = ["Outputs", "Simulation", "evaluate_outputs", "run_scene", "initial_state", "start_state",
-           "speed_setpoint", "table_value"]
+           "speed_setpoint", "speed_setpoints", "table_value", "table_values"]
 
 
 def kernel_path(model, compiled: bool | None) -> tuple[bool | None, str]:
@@ -53,7 +53,12 @@ def kernel_path(model, compiled: bool | None) -> tuple[bool | None, str]:
 
 def table_value(table: Table, t: float) -> float:
     """Piecewise-linear interpolation, held constant outside the table."""
-    return float(np.interp(t, table.time, table.value))
+    return float(table_values(table, t))
+
+
+def table_values(table: Table, t):
+    """``table_value`` at every time of the array ``t`` (np.interp: the same numbers point by point)."""
+    return np.interp(t, table.time, table.value)
 
 
 def initial_state(scene: Scene, model: Model) -> np.ndarray:
@@ -89,9 +94,14 @@ def start_state(scene: Scene, model) -> np.ndarray:
 
 def speed_setpoint(scene: Scene, t: float) -> float:
     """The scene's speed set-point at t, or the traction law's default."""
+    return float(speed_setpoints(scene, t))
+
+
+def speed_setpoints(scene: Scene, t):
+    """``speed_setpoint`` at every time of the array ``t``."""
     if scene.speed is None:
-        return scene.train.traction.set_speed
-    return table_value(scene.speed, t)
+        return np.full(np.shape(t), scene.train.traction.set_speed)
+    return table_values(scene.speed, t)
 
 
 class Simulation:

@@ -142,7 +142,8 @@ def test_mta_linearize_writes_markdown_json_and_npz(tmp_path, capsys):
     assert cli.main(["linearize", "trains/default.yaml", "--about", "turn", "--steering", "0.25", "--speed", "3",
                      "--out", str(prefix)]) == 0
     out = capsys.readouterr().out
-    assert "| -0.531286 | phi2: hitch 2's mode, decays |" in out
+    hitch2 = linear.turn_closed_form(DEFAULT, 3.0, 0.25)[0].real  # -Omega R_B2 / l_2, the faster hitch
+    assert f"| {hitch2:.6g} | phi2: hitch 2's mode, decays |" in out
     data = json.loads((tmp_path / "lin.json").read_text())
     assert data["states"] == ["rho", "eta", "phi2", "phi3", "psi"] and len(data["eigenvalues"]) == 5
     saved = np.load(tmp_path / "lin.npz")

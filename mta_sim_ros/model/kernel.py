@@ -371,7 +371,8 @@ def clear(P, y):
 
 
 #: per-cart output columns after the REC ones: A, B, C (x, y), hitch angle phi_k, s'_Ck, s'_Bk, th'_k,
-#: the drawbar pull at A_k (``drawbar_pulls``)
+#: the drawbar pull at A_k (written by ``drawbar_pulls`` only, after ``outputs``: the node's tick,
+#: which publishes no pull, does not compute it)
 AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT, PULL = range(REC, REC + 11)
 OUT = REC + 11
 #: scalar outputs
@@ -399,6 +400,7 @@ def outputs(P, y, command, v_set, cart, sc, dy):
         cart[k, CX], cart[k, CY] = bx + P[b + C.com_offset] * ex, by + P[b + C.com_offset] * ey
         ax, ay = bx - P[b + C.hitch_offset] * ex, by - P[b + C.hitch_offset] * ey
         cart[k, VC], cart[k, VB], cart[k, VT] = cart[k, KAPC] * V, cart[k, KAPB] * V, cart[k, KAPT] * V
+        cart[k, PULL] = math.nan  # not computed here (drawbar_pulls)
         res_power += cart[k, RES] * cart[k, VB]
         if k:
             phi = wrap_angle(y[1 + k] - th)
@@ -410,7 +412,6 @@ def outputs(P, y, command, v_set, cart, sc, dy):
             cart[k, PHI] = 0.0
     sc[REAR_X], sc[REAR_Y] = ax, ay
     sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
-    drawbar_pulls(P, y, dy[n + 3], cart)
     return traction
 
 
@@ -426,7 +427,7 @@ def drawbar_pulls(P, y, acceleration, cart):
         H_k . e_k = H_{k+1} . e_k + F_Bk + m_k a_e                          (Newton along e_k)
         H_k . n_k = (J_k th''_k + c_k m_k a_n - a_k H_{k+1} . n_k) / l_k   (Euler about C_k, N_k eliminated)
 
-    ``cart`` holds the REC and VB, VT columns of ``outputs``; cart[0, PULL] is left 0 (the traction
+    ``cart`` holds the REC and VB, VT columns of ``outputs`` (``acceleration`` its dy[n + 3]); cart[0, PULL] is 0 (the traction
     at A_1 is ``outputs``' own). On a straight line at constant speed the pull at A_k is the sum of
     the resistances behind it (test_sweep_metrics)."""
     n = int(P[H.n])
@@ -824,6 +825,18 @@ def outputs_of(P, y, command, v_set):
 
 
 @entry
+def pulls_of(P, y, command, v_set):
+    """(cart n x OUT, scalars) of ``outputs`` with the drawbar pulls' column (``drawbar_pulls``)."""
+    n = int(P[H.n])
+    cart = np.empty((n, OUT))
+    sc = np.empty(SCALARS)
+    dy = np.empty(y.shape[0])
+    outputs(P, y, command, v_set, cart, sc, dy)
+    drawbar_pulls(P, y, dy[n + 3], cart)
+    return cart, sc
+
+
+@entry
 def margin_of(P, y):
     """``margin``: (margin, cart index)."""
     return margin(P, y)
@@ -857,6 +870,7 @@ def trace_row(P, y, command, law_input, cart, sc, dy, row):
     """The outputs of a run's trace at state y into ``row`` (TRACE_HEAD + TRACE_CART n)."""
     n = int(P[H.n])
     outputs(P, y, command, law_input, cart, sc, dy)
+    drawbar_pulls(P, y, dy[n + 3], cart)
     row[TR_TRACTION], row[TR_SPEED], row[TR_MARGIN], row[TR_STEERING] = sc[TRACTION], y[n + 3], sc[MARGIN], y[n + 2]
     for k in range(n):
         j = TRACE_HEAD + TRACE_CART * k
@@ -961,4 +975,4 @@ def _segment_distance2(px, py, j, last, x, y):
     return ox * ox + oy * oy, cross, u
 
 
-ENTRIES = (rhs_of, tick, outputs_of, margin_of, switches_of, release_of, trace_of, run, path_offsets)
+ENTRIES = (rhs_of, tick, outputs_of, pulls_of, margin_of, switches_of, release_of, trace_of, run, path_offsets)

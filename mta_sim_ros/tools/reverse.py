@@ -51,16 +51,12 @@ def main(args: argparse.Namespace) -> int:
     from std_msgs.msg import Float64
 
     from ..config import resolve_config_path
-    from ..model.loader import SpecError, load_scene
+    from ..model.loader import load_scene
     from ..reversing import design, design_curve
     from ..ros_msgs import QOS
     from .maneuver import spin_and_report
 
-    try:
-        scene = load_scene(resolve_config_path(args.scene))
-    except SpecError as err:
-        print(f"mta reverse: {err}", file=sys.stderr)
-        return 2
+    scene = load_scene(resolve_config_path(args.scene))  # a bad scene: cli.main says it in one line, exit 2
     train = scene.train
     weights = (args.q_offset, args.q_hitch, args.q_heading, args.r)
     try:
