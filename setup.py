@@ -53,7 +53,8 @@ def share_data_files():
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
+    # benchmarks/ (top level) measure a checkout; they are not installed
+    packages=find_packages(exclude=['test', 'test.*', 'benchmarks', 'benchmarks.*']),
     data_files=[
         ('share/ament_index/resource_index/packages',
             ['resource/' + package_name]),
@@ -80,7 +81,7 @@ setup(
         # `mta linearize`: exact derivatives of the chain's equations on symbols (linear.py); pure Python
         'sympy>=1.12',
     ],
-    # numba (the compiled kernels, model/kernel.py) is an extra, not a hard requirement: the
+    # numba (the compiled kernels, physics/kernel/) is an extra, not a hard requirement: the
     # package runs without it (same results on the Python path, slower), numba's LLVM wheels are
     # large and lag new Python releases, and a failed numba install must not block installing
     # the simulator. requirements.txt (the venvs, CI) and package.xml (rosdep) do pull it in.
@@ -101,7 +102,7 @@ setup(
     entry_points={
         'console_scripts': [
             'mta = mta_sim_ros.cli:main',
-            'sim_node = mta_sim_ros.node:main',
+            'sim_node = mta_sim_ros.node.sim_node:main',
         ],
     },
 )

@@ -9,8 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from mta_sim_ros.model.geometry import cart_points
-from mta_sim_ros.model.loader import load_train
+from mta_sim_ros.physics.geometry import cart_points
+from mta_sim_ros.physics.loader import load_train
 
 HERE = Path(__file__).resolve().parent
 train = load_train(HERE.parent / "config" / "trains" / "default.yaml")

@@ -7,11 +7,12 @@ rule", what they do), and no static peers elsewhere. sim.launch.py, rviz.launch.
 foxglove.launch.py include it first; an include does not scope the environment, so the settings
 hold for the rest of the including file.
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable, UnsetEnvironmentVariable
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
-from mta_sim_ros.loopback import loopback_env
+
+from launch import LaunchDescription
+from mta_sim_ros.node.loopback import loopback_env
 
 
 def generate_launch_description():

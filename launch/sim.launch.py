@@ -31,14 +31,15 @@ import os
 import shlex
 
 from ament_index_python.packages import get_package_share_directory
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription, OpaqueFunction
 from launch.conditions import IfCondition, evaluate_condition_expression
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
-from mta_sim_ros.params import BY_NAME, ConfigError, read_params_file
+
+from launch import LaunchDescription
+from mta_sim_ros.node.params import BY_NAME, ConfigError, read_params_file
 
 PACKAGE = 'mta_sim_ros'
 

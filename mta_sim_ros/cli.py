@@ -13,7 +13,6 @@ import sys
 
 from .validate import EXIT_INPUT, InputError, one_line
 
-
 EXIT_INTERRUPTED = 130  # as a shell reports a process ended by SIGINT
 
 
@@ -27,7 +26,7 @@ class Parser(argparse.ArgumentParser):
 
 def check_main(args: argparse.Namespace) -> int:
     from .config import resolve_config_path
-    from .model.loader import check_files
+    from .physics.loader import check_files
 
     return check_files([resolve_config_path(f) for f in args.files])
 
@@ -36,8 +35,8 @@ def urdf_main(args: argparse.Namespace) -> int:
     """Print the URDF of a scene's train as the node in ``--namespace`` publishes it on
     robot_description (urdf.py), e.g. for robot_state_publisher's robot_description parameter."""
     from .config import resolve_config_path
-    from .model.loader import load_scene
-    from .urdf import NAMESPACE, frame_prefix, robot_model
+    from .messages.urdf import NAMESPACE, frame_prefix, robot_model
+    from .physics.loader import load_scene
     from .validate import fail, show
 
     if not NAMESPACE.test(args.namespace):
@@ -71,7 +70,7 @@ def recover_main(args: argparse.Namespace) -> int:
 
 def node_main(args: argparse.Namespace) -> int:
     from .config import resolve_config_path
-    from .node import main
+    from .node.sim_node import main
 
     params = resolve_config_path(args.params_file or "sim.yaml")
     return main(["mta_node", "--ros-args", "--params-file", params, *args.ros_args[1:]])
@@ -147,8 +146,6 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "sweep", "synthesis: many hitching schemes run and compared (Dask), report and export", selected)
 
-    add_tool(sub, "bench", "benchmarks: realtime, method, work-precision, stability, scaling, fidelity, "
-                           "tick-parts, kinks, sigkill, flood", selected)
     return parser
 
 

@@ -116,6 +116,11 @@ class Rule:
 ANY = Rule("finite", lambda x: True)
 POSITIVE = Rule("> 0", lambda x: x > 0)
 NON_NEGATIVE = Rule(">= 0", lambda x: x >= 0)
+#: a frame name as tf2 takes it: no leading '/', no spaces or control characters, not empty, and
+#: short (it is in every message the node publishes): the node's frame_id, the URDF's frames
+FRAME_ID = Rule("a frame name: 1 to 256 printable characters, no spaces, not starting with '/'",
+                lambda v: 0 < len(v) <= 256 and v.isprintable() and not any(c.isspace() for c in v)
+                and not v.startswith("/"))
 
 
 @dataclass(frozen=True)

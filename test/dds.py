@@ -18,7 +18,7 @@ from pathlib import Path
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-from mta_sim_ros.loopback import loopback_env
+from mta_sim_ros.node.loopback import loopback_env
 
 REPO = Path(__file__).resolve().parents[1]
 # A domain of this session's own (valid Linux domains: 0-101); override with MTA_TEST_DOMAIN.

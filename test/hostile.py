@@ -17,8 +17,10 @@ CONFIG = REPO / "config"
 
 
 def mta(*args, cwd: Path | None = None, timeout: float = 120) -> subprocess.CompletedProcess:
-    """``mta ARGS`` in a process of its own (ROS on loopback, this session's domain)."""
-    return subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", *map(str, args)], capture_output=True,
+    """``mta ARGS`` in a process of its own (ROS on loopback, this session's domain); ``bench ARGS``
+    is ``python -m benchmarks ARGS`` (the checkout's benchmarks, importable from ros_env's path)."""
+    module, args = (("benchmarks", args[1:]) if args and args[0] == "bench" else ("mta_sim_ros.cli", args))
+    return subprocess.run([sys.executable, "-m", module, *map(str, args)], capture_output=True,
                           text=True, cwd=cwd or REPO, timeout=timeout, env=ros_env())
 
 

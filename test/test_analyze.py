@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 
 from mta_sim_ros.bag import BagWriter, read_messages
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.model.steady import steady_circle
-from mta_sim_ros.sim import run_scene
+from mta_sim_ros.messages.topics import TOPICS, command_messages, output_messages, qualified
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.physics.steady import steady_circle
+from mta_sim_ros.run.simulation import run_scene
 from mta_sim_ros.tools import analyze
 from mta_sim_ros.tools.run import run_metadata
-from mta_sim_ros.topics import TOPICS, command_messages, output_messages, qualified
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "config" / "scenes"

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from cdr_refs import assert_fields, rclpy_message
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
@@ -47,9 +48,7 @@ from mta_sim_ros.bag import (
     summary,
 )
 from mta_sim_ros.bag.schemas import SEPARATOR, share_dirs, vendored_dir
-from mta_sim_ros.topics import BAG_TOPICS
-
-from cdr_refs import assert_fields, rclpy_message
+from mta_sim_ros.messages.topics import BAG_TOPICS
 
 ROOT = Path(__file__).resolve().parents[1]
 

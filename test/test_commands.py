@@ -1,4 +1,4 @@
-"""Commands as the node holds them (mta_sim_ros.commands), and a reset that really starts over."""
+"""Commands as the node holds them (mta_sim_ros.node.commands), and a reset that really starts over."""
 from __future__ import annotations
 
 import dataclasses
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mta_sim_ros.commands import SPEED_LIMIT, CommandInput, command_ranges, hold
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.sim import Simulation
+from mta_sim_ros.node.commands import SPEED_LIMIT, CommandInput, command_ranges, hold
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import Simulation
 
 SCENE = Path(__file__).resolve().parents[1] / "config" / "scenes" / "lane_change.yaml"
 

@@ -8,21 +8,19 @@ import math
 
 import numpy as np
 import pytest
-from rclpy.serialization import serialize_message
-
 from geometry_msgs.msg import Twist
+from rclpy.serialization import serialize_message
+from test_session import SCENE, TICK, Run
 
 from mta_sim_ros.bag import read_messages
 from mta_sim_ros.bag.cdr import encode
-from mta_sim_ros.commands import SPEED_LIMIT, ackermann_setting, twist_setting
-from mta_sim_ros.diagnostics import OK, WARN
-from mta_sim_ros.messages.commands import decode_ackermann, decode_twist
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.session import LOCKSTEP_TIMER_PERIOD, REPUBLISH_EVERY, message_commands
-from mta_sim_ros.sim import Simulation
+from mta_sim_ros.messages.decode import decode_ackermann, decode_twist
+from mta_sim_ros.node.commands import SPEED_LIMIT, ackermann_setting, twist_setting
+from mta_sim_ros.node.run_session import LOCKSTEP_TIMER_PERIOD, REPUBLISH_EVERY, message_commands
+from mta_sim_ros.node.status import OK, WARN
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import Simulation
 from mta_sim_ros.tools.replay import resimulate
-
-from test_session import SCENE, TICK, Run
 
 TRAIN = load_scene(str(SCENE)).train
 L1, MAX_ANGLE, MAX_RATE = TRAIN.carts[0].length, TRAIN.actuator.max_angle, TRAIN.actuator.max_rate

@@ -14,16 +14,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rosgraph_msgs.msg import Clock
-
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.session import message_commands
-from mta_sim_ros.sim import speed_setpoint
-
 from dds import REPO, Probe, start_node, start_python, stop, write_params
+from rosgraph_msgs.msg import Clock
 from test_controllers import raw_messages
 from test_drive import mta
 from test_node import bags_in, read_bag
+
+from mta_sim_ros.node.run_session import message_commands
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import speed_setpoint
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
 RATE = 50.0
@@ -99,7 +98,7 @@ CONTROLLER = """
     import math, sys, time, rclpy
     from geometry_msgs.msg import PoseArray, Twist
     from std_msgs.msg import Float64
-    from mta_sim_ros.ros_msgs import QOS
+    from mta_sim_ros.node.ros_msgs import QOS
     mode, V0, L1, ANSWERS = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
 
     def psi(k):  # float32-exact steering angles (multiples of 2**-8 rad)
@@ -206,7 +205,6 @@ def test_a_free_running_node_takes_cmd_vel_and_ackermann_cmd_and_records_them_as
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import Twist
     from rclpy.serialization import deserialize_message
-
     from test_node import value
 
     params = write_params(tmp_path / "p.yaml", scene_file=str(SCENE), bag_dir=str(tmp_path / "bags"),

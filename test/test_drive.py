@@ -8,13 +8,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from rosgraph_msgs.msg import Clock
-
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.sim import table_value
-
 from dds import REPO, Probe, ros_env, start_node, stop, write_params
+from rosgraph_msgs.msg import Clock
 from test_node import bags_in, read_bag
+
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import table_value
 
 LANE_CHANGE = REPO / "config" / "scenes" / "lane_change.yaml"
 FOLLOW_BOUND_M = 0.05  # stated bound on the implement's lateral error on the straight passes

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from mta_sim_ros import cli, equations
+from mta_sim_ros import cli
 from mta_sim_ros.config import resolve_config_path
-from mta_sim_ros.model import kernel, loader
+from mta_sim_ros.physics import kernel, loader
+from mta_sim_ros.symbolic import equations
 
 TRAINS = ["single_tractor", "offset_hitch", "light_tractor_heavy_cart", "default", "long_train"]
 

@@ -8,13 +8,12 @@ import math
 
 import numpy as np
 import pytest
-
-from mta_sim_ros import fidelity
-from mta_sim_ros.model.slip import SlipModel, axle_stiffness, no_slip_tyre_forces
-from mta_sim_ros.model.spec import Needs, Table, Traction
-from mta_sim_ros.sim import Simulation, run_scene, start_state
-
 import trains
+
+from mta_sim_ros.physics.slip import SlipModel, axle_stiffness, no_slip_tyre_forces
+from mta_sim_ros.physics.spec import Needs, Table, Traction
+from mta_sim_ros.run import fidelity
+from mta_sim_ros.run.simulation import Simulation, run_scene, start_state
 
 SINE = (tuple(np.linspace(0.0, 12.0, 49)), tuple(0.2 * np.sin(2 * math.pi * np.linspace(0.0, 12.0, 49) / 8.0)))
 TURN = ((0.0, 1.0, 2.0), (0.0, 0.0, 0.2))
@@ -147,7 +146,7 @@ def test_no_slip_tyre_forces_are_the_constraint_forces():
     front, rear = no_slip_tyre_forces(model, y, 0.15, 3.0)
     # rebuild the no-slip acceleration from the slip equations plus these forces
     tm = model.dynamic.terms(y, 0.15, 3.0)
-    from mta_sim_ros.model.holonomic import HolonomicReduction
+    from mta_sim_ros.physics.holonomic import HolonomicReduction
 
     heading = y[2:5]
     G, G_dot = HolonomicReduction.constraint_matrix(heading, 0.15, tm.chain, tm.steering_rate, 3.0)

@@ -22,23 +22,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yourdfpy
+from bagcheck import assert_never_back
+from cdr_refs import rosbags_decode
 from rosbags.highlevel import AnyReader
+from test_session import FakeClock, Log
+from trains import scene as make_scene
 
 from mta_sim_ros import cli
 from mta_sim_ros.bag import read_messages, stamp
 from mta_sim_ros.messages import FrameEncoder
-from mta_sim_ros.model.loader import load_scene, load_train
-from mta_sim_ros.params import PARAMS, ConfigError
-from mta_sim_ros.session import RunSession
-from mta_sim_ros.sim import Simulation
-from mta_sim_ros.topics import FRAME_TOPICS, LATCHED_TOPICS, qualified
-from mta_sim_ros.urdf import BOX_HEIGHT, frame_prefix, robot_model
+from mta_sim_ros.messages.topics import FRAME_TOPICS, LATCHED_TOPICS, qualified
+from mta_sim_ros.messages.urdf import frame_prefix, robot_model
+from mta_sim_ros.physics.outline import BOX_HEIGHT
+from mta_sim_ros.node.params import PARAMS, ConfigError
+from mta_sim_ros.node.run_session import RunSession
+from mta_sim_ros.physics.loader import load_scene, load_train
+from mta_sim_ros.run.simulation import Simulation
 from mta_sim_ros.validate import InputError
-
-from bagcheck import assert_never_back
-from cdr_refs import rosbags_decode
-from test_session import FakeClock, Log
-from trains import scene as make_scene
 
 REPO = Path(__file__).resolve().parents[1]
 TRAIN = REPO / "config" / "trains" / "default.yaml"
@@ -390,14 +390,13 @@ def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses
     cart's frame at its hitch pose; joint_states are the hitch angles; the robot_description a
     late subscriber gets parses with yourdfpy and its kinematics give the same frames; the odometry
     is base_link's frame and turns as its rear axle must; its bag holds all of it."""
+    from dds import Probe, start_node, stop, write_params
     from geometry_msgs.msg import PoseArray
     from nav_msgs.msg import Odometry
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
     from tf2_msgs.msg import TFMessage
-
-    from dds import Probe, start_node, stop, write_params
 
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     params = write_params(tmp_path / "params.yaml", scene_file=str(REPO / "config/scenes/headland_turn.yaml"),

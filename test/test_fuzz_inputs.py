@@ -23,18 +23,18 @@ from pathlib import Path
 
 import yaml
 from hypothesis import HealthCheck, event, given, settings
-from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
+from hypothesis.control import currently_in_test_context
+from test_session import FakeClock, Log
 
 from mta_sim_ros.integrate import IntegrationError
-from mta_sim_ros.model import loader, spec
-from mta_sim_ros.model.guards import ModelValidityError
-from mta_sim_ros.pacing import MAX_TIMER_PERIOD
-from mta_sim_ros.params import BY_NAME, PARAMS, ConfigError, read_params_file
-from mta_sim_ros.session import RunSession
-from mta_sim_ros.sim import Simulation
+from mta_sim_ros.node.pacing import MAX_TIMER_PERIOD
+from mta_sim_ros.node.params import BY_NAME, PARAMS, ConfigError, read_params_file
+from mta_sim_ros.node.run_session import RunSession
+from mta_sim_ros.physics import loader, spec
+from mta_sim_ros.physics.guards import ModelValidityError
+from mta_sim_ros.run.simulation import Simulation
 from mta_sim_ros.validate import InputError
-from test_session import FakeClock, Log
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config"
@@ -177,7 +177,8 @@ def mutated_sweep(draw) -> str:
 @RUNS
 @given(mutated_sweep())
 def test_a_mutated_sweep_spec_is_a_spec_or_one_line_and_its_first_scheme_runs(text):
-    from mta_sim_ros.sweep import engine, spec as sweep_spec
+    from mta_sim_ros.sweep import engine
+    from mta_sim_ros.sweep import spec as sweep_spec
 
     path = WORK / "fuzz_sweep.yaml"
     path.write_text(text)

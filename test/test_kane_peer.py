@@ -23,7 +23,7 @@ import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from mta_sim_ros.model import kernel, loader
+from mta_sim_ros.physics import kernel, loader
 
 GRAVITY = 9.80665
 KMH = 3.6

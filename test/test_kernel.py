@@ -21,18 +21,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from mta_sim_ros.integrate.tableau import TABLEAUX
-from mta_sim_ros.model import jit, kernel
-from mta_sim_ros.model.dynamics import Model
-from mta_sim_ros.model.guards import ModelValidityError, jackknife_margin
-from mta_sim_ros.model.kinematic import KinematicModel
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.model.outputs import evaluate, reference_outputs
-from mta_sim_ros.model.spec import Draft
-from mta_sim_ros.sim import NO_JIT_ENV, Simulation, run_scene
-
 import trains
+
+from mta_sim_ros import jit
+from mta_sim_ros.integrate import rk
+from mta_sim_ros.integrate.tableau import TABLEAUX
+from mta_sim_ros.physics import kernel
+from mta_sim_ros.physics.dynamics import Model
+from mta_sim_ros.physics.guards import ModelValidityError, jackknife_margin
+from mta_sim_ros.physics.kinematic import KinematicModel
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.physics.outputs import evaluate, reference_outputs
+from mta_sim_ros.physics.spec import Draft
+from mta_sim_ros.run.simulation import NO_JIT_ENV, Simulation, run_scene
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -167,7 +168,7 @@ def test_compiled_tick_equals_plain_python(method, n, split):
         y[model.layout.speed] = abs(y[model.layout.speed]) + 0.5
         for step in (0.01, 0.004, 0.0031):  # 1, 3 and 4 steps per 10 ms tick
             args = (model.P, T, y, command, v_set, 3.0, 3.01, step, split)
-            a, b = kernel.tick(*args), kernel.tick.py_func(*args)
+            a, b = rk.tick(*args), rk.tick.py_func(*args)
             np.testing.assert_array_equal(a[0], b[0])
             assert a[1:] == b[1:]
 
@@ -234,10 +235,10 @@ def test_the_packed_constants_are_the_trains():
 def test_the_compiled_kernels_are_the_default_and_compile_at_construction():
     sim = Simulation(headland())
     assert sim.level == "dynamic" and sim.method == "rk4" and sim.compiled is True, sim.compiled_note
-    signatures = len(kernel.tick.signatures)
+    signatures = len(rk.tick.signatures)
     sim.advance(0, 3)  # ints: converted, not a new specialization compiled in the tick
     sim.advance(np.float64(0.1), 3.0)
-    assert len(kernel.tick.signatures) == signatures
+    assert len(rk.tick.signatures) == signatures
     assert sim.stepper.nfev == 2 * 4 * math.ceil(sim.tick / sim.stepper_step - 1e-9)
 
 
@@ -258,8 +259,8 @@ def test_switches_keep_the_python_path(monkeypatch):
 def test_without_numba_the_same_source_runs_as_python():
     """MTA_SIM_NO_JIT=1 at import: numba is not even imported, and a run gives the compiled run's
     numbers to the last bit."""
-    code = ("import sys, numpy as np; from mta_sim_ros.sim import run_scene; "
-            "from mta_sim_ros.model.loader import load_scene; from mta_sim_ros.model import jit; "
+    code = ("import sys, numpy as np; from mta_sim_ros.run.simulation import run_scene; "
+            "from mta_sim_ros.physics.loader import load_scene; from mta_sim_ros import jit; "
             f"sim, err = run_scene(load_scene({str(REPO / 'config/scenes/headland_turn.yaml')!r}), fidelity='dynamic'); "
             "assert 'numba' not in sys.modules and not jit.ENABLED and sim.compiled is False; "
             "print(repr(sim.y.tolist()))")

@@ -19,15 +19,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trains
 
 from mta_sim_ros.integrate.tableau import TABLEAUX
-from mta_sim_ros.model import forces, kernel
-from mta_sim_ros.model.actuator import steering_rate
-from mta_sim_ros.model.dynamics import Model
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.sim import Simulation
-
-import trains
+from mta_sim_ros.physics import forces, kernel
+from mta_sim_ros.physics.actuator import steering_rate
+from mta_sim_ros.physics.dynamics import Model
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import Simulation
 
 REPO = Path(__file__).resolve().parents[1]
 TARGET = 1e-6  # m, the default method against the reference (the target)

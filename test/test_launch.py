@@ -25,20 +25,20 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import launchfiles
 import pytest
 import rclpy
 import yaml
+from dds import REPO, Probe, ros_env, start_node, stop, write_params
 from geometry_msgs.msg import PoseArray
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from std_msgs.msg import String
 
-from mta_sim_ros import cli, params
+from mta_sim_ros import cli
+from mta_sim_ros.node import params
 from mta_sim_ros.tools.rsp_feed import DESCRIPTION_QOS
-
-import launchfiles
-from dds import REPO, Probe, ros_env, start_node, stop, write_params
 
 PKG = "mta_sim_ros"
 RVIZ_CONFIG = REPO / "config" / "rviz" / "mta.rviz"

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from mta_sim_ros import cli, linear
+from mta_sim_ros import cli
 from mta_sim_ros.config import resolve_config_path
-from mta_sim_ros.model import loader
-from mta_sim_ros.model.steady import steady_circle
-from mta_sim_ros.sim import Simulation
+from mta_sim_ros.physics import loader
+from mta_sim_ros.physics.steady import steady_circle
+from mta_sim_ros.run.simulation import Simulation
+from mta_sim_ros.symbolic import linear
 
 DEFAULT = loader.load_train(resolve_config_path("trains/default.yaml"))
 OFFSET = loader.load_train(resolve_config_path("trains/offset_hitch.yaml"))

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from mta_sim_ros.model import loader, spec
-from mta_sim_ros.model.loader import SpecError
+from mta_sim_ros.physics import loader, spec
+from mta_sim_ros.physics.loader import SpecError
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"
 TRAIN_FILES = sorted((CONFIG / "trains").glob("*.yaml"))

@@ -5,10 +5,9 @@ from __future__ import annotations
 import copy
 
 import pytest
-
-from mta_sim_ros.model import loader, spec
-
 from test_loader import SCENE, SCENE_FILES, TRAIN, check_fault, put, write_pair
+
+from mta_sim_ros.physics import loader, spec
 
 FAULTS = [
     ("train", put("carts.1.cornering_stiffness", -2e5), "cornering_stiffness", "-200000", "carts[1]", "> 0"),

@@ -15,13 +15,12 @@ import warnings
 from pathlib import Path
 
 import pytest
+from bagcheck import assert_never_back, log_times
 
 from mta_sim_ros import cli
 from mta_sim_ros.bag import BagError, BagWriter, float64, recover
-from mta_sim_ros.params import PARAMS
-from mta_sim_ros.session import RunSession
-
-from bagcheck import assert_never_back, log_times
+from mta_sim_ros.node.params import PARAMS
+from mta_sim_ros.node.run_session import RunSession
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -11,9 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mta_sim_ros.model import maneuvers
-from mta_sim_ros.model.maneuvers import MANEUVERS, ParamError, expand
-from mta_sim_ros.model import loader
+from mta_sim_ros.physics import loader, maneuvers
+from mta_sim_ros.physics.maneuvers import MANEUVERS, ParamError, expand
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"
 DT = 1e-3  # s, fine trapezoid grid

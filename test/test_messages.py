@@ -15,22 +15,22 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
+from cdr_refs import assert_fields, rclpy_message, rosbags_decode
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Header
+from trains import scene as make_scene
 from visualization_msgs.msg import Marker, MarkerArray
 
-from mta_sim_ros import messages, topics
+from mta_sim_ros import messages
 from mta_sim_ros.bag import cdr, stamp
 from mta_sim_ros.messages import markers as drawing
-from mta_sim_ros.model.loader import load_scene, load_train
-from mta_sim_ros.sim import Simulation
-
-from cdr_refs import assert_fields, rclpy_message, rosbags_decode
-from trains import scene as make_scene
+from mta_sim_ros.messages import topics
+from mta_sim_ros.physics.loader import load_scene, load_train
+from mta_sim_ros.run.simulation import Simulation
 
 REPO = Path(__file__).resolve().parents[1]
 CLASSES = {"hitch_poses": PoseArray, "cart_velocities": JointState, "traction_power": Float64,
@@ -393,8 +393,8 @@ class NoRos(importlib.abc.MetaPathFinder):
 sys.meta_path.insert(0, NoRos())
 import mta_sim_ros.tools.run
 from mta_sim_ros import messages
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.sim import Simulation
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import Simulation
 scene = load_scene({str(REPO / "config/scenes/lane_change.yaml")!r})
 out = Simulation(scene).outputs()
 names = [c.name for c in scene.train.carts]

@@ -3,7 +3,7 @@
 In a venv of its own, made from this checkout with setup.py's install_requires and nothing else
 (no ros-jazzy wheels, no numba, no ROS share directory, no PYTHONPATH): ``mta check`` of a scene
 named as users name it, ``mta run`` of it into a bag, ``mta analyze`` and ``mta replay
---resimulate`` of that bag, and a benchmark that needs no DDS (``mta bench tick-parts``, whose
+--resimulate`` of that bag, and a benchmark that needs no DDS (``python -m benchmarks tick-parts``, whose
 parser also imports every benchmark module). The test first shows that ``import rclpy`` fails
 there, so it proves what it claims. test_rooms.py runs the same commands in this environment with
 the ROS imports blocked; this one shows what such an install lacks besides: the ROS share
@@ -124,7 +124,7 @@ def test_there_is_no_ros_in_that_venv(noros, tmp_path):
     venv, _ = noros
     done = run(noros, tmp_path, "python", "-c", "import rclpy")
     assert done.returncode != 0 and "No module named 'rclpy'" in done.stderr, done.stderr
-    probe = ("import json, mta_sim_ros, mta_sim_ros.bag.schemas as s; from mta_sim_ros.model import jit\n"
+    probe = ("import json, mta_sim_ros, mta_sim_ros.bag.schemas as s; from mta_sim_ros import jit\n"
              "print(json.dumps([mta_sim_ros.__file__, [str(d) for d in s.share_dirs()], jit.ENABLED]))")
     done = run(noros, tmp_path, "python", "-c", probe)
     assert done.returncode == 0, done.stderr
@@ -158,7 +158,7 @@ def test_the_research_commands_run_from_a_plain_pip_install(noros, tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines()[-1] == "identical", done.stdout
 
-    done = run(noros, tmp_path, "mta", "bench", "tick-parts", "--scene", SCENE, "--rounds", "1", "--calls", "1")
+    done = run(noros, REPO, "python", "-m", "benchmarks", "tick-parts", "--scene", SCENE, "--rounds", "1", "--calls", "1")
     assert done.returncode == 0, done.stderr
     assert "markers (MarkerArray)" in done.stdout, done.stdout
 

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bagcheck import assert_never_back
+from dds import REPO, Probe, start_node, start_python, stop, write_params
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray
 from rosbags.highlevel import AnyReader
@@ -22,15 +24,11 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
-from mta_sim_ros.bag import DEFAULT_CHUNK_SIZE
-from mta_sim_ros.bag import read_metadata
+from mta_sim_ros.bag import DEFAULT_CHUNK_SIZE, read_metadata
 from mta_sim_ros.bag import summary as bag_summary
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.sim import Simulation
-from mta_sim_ros.timing import TickStats
-
-from bagcheck import assert_never_back
-from dds import REPO, Probe, start_node, start_python, stop, write_params
+from mta_sim_ros.node.timing import TickStats
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.simulation import Simulation
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
 RATE = 50.0

@@ -7,16 +7,15 @@ import math
 
 import numpy as np
 import pytest
+import trains
 from scipy.integrate import solve_ivp
 
-from mta_sim_ros.model.dynamics import Model
-from mta_sim_ros.model.geometry import cart_points
-from mta_sim_ros.model.guards import jackknife_margin
-from mta_sim_ros.model.holonomic import HolonomicReduction
-from mta_sim_ros.model.steady import SteadyStateError, steady_circle
-from mta_sim_ros.sim import Simulation, evaluate_outputs, run_scene
-
-import trains
+from mta_sim_ros.physics.dynamics import Model
+from mta_sim_ros.physics.geometry import cart_points
+from mta_sim_ros.physics.guards import jackknife_margin
+from mta_sim_ros.physics.holonomic import HolonomicReduction
+from mta_sim_ros.physics.steady import SteadyStateError, steady_circle
+from mta_sim_ros.run.simulation import Simulation, evaluate_outputs, run_scene
 
 # Trains for the closed-form checks: n = 1..5, the 4th cart is hitched in front of its axle.
 TRAINS = {n: trains.train(n) for n in range(1, 6)}

@@ -17,7 +17,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from mta_sim_ros.bag import BagError, BagWriter, read_metadata, recover
-from mta_sim_ros.recorder import BACKLOG_SECONDS, RunRecorder
+from mta_sim_ros.node.recorder import BACKLOG_SECONDS, RunRecorder
 
 TOPICS = {"/traction_power": "std_msgs/msg/Float64", "/applied_steering": "std_msgs/msg/Float64"}
 

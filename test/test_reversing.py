@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 import yaml
 
-from mta_sim_ros import linear, reversing
 from mta_sim_ros.config import resolve_config_path
-from mta_sim_ros.model import loader
+from mta_sim_ros.controllers.reversing import controller as reversing
+from mta_sim_ros.physics import loader
+from mta_sim_ros.symbolic import linear
 
 DEFAULT = loader.load_train(resolve_config_path("trains/default.yaml"))
 
@@ -60,7 +61,7 @@ def test_the_default_unit_reverses_100_m_within_5_cm_of_the_line():
 
 def curve_start(train, gains, offset: float = 0.3):
     """The initial pose on the steady reversing circle about the origin, A_1 ``offset`` m outside it."""
-    from mta_sim_ros.model.steady import steady_circle
+    from mta_sim_ros.physics.steady import steady_circle
 
     return {"x": gains.R_A1 + offset, "y": 0.0, "heading": float(gains.point[1]), "speed": gains.speed,
             "steering": gains.steering, "hitch_angles": [float(v) for v in steady_circle(train, gains.steering).hitch_angles]}
@@ -71,7 +72,7 @@ def test_the_default_unit_reverses_along_a_gentle_curve(radius, side, speed):
     """About the steady reversing turn that puts the seeder's axle on the circle (its steering from
     the closed-form circles), from 0.3 m outside: after 30 m the axle stays within 5 cm of the circle
     over 100 m of arc (measured: 1.4 cm at 50 m, 1.1 cm at 30 m), every closed-loop mode decaying."""
-    from mta_sim_ros.model.steady import steady_circle
+    from mta_sim_ros.physics.steady import steady_circle
 
     gains = reversing.design_curve(DEFAULT, speed, radius, side)
     assert steady_circle(DEFAULT, gains.steering).R_B[-1] == pytest.approx(radius, rel=1e-9)

@@ -1,8 +1,12 @@
-"""The package's rooms import one way, and the code reaches into nothing private.
+"""The package's rooms import one way, its compiled code is one cache unit, and the code reaches
+into nothing private.
 
-- import-linter (its own contracts file, .importlinter): model <- integrate <- a run (sim, session
-  and their parts) <- the ROS glue <- tools <- cli, bag beside model; and the physics, a run, the
-  bags and the research commands import no ROS package.
+- import-linter (its own contracts file, .importlinter): each room imports only the rooms below it
+  (docs/architecture.md), and the physics, a run, the bags and the research commands import no ROS
+  package.
+- The compiled unit (jit.UNIT): exactly the files that use jit's decorators, and their compiled
+  functions read names only from files of the unit (numba freezes what they read into its cache,
+  which is keyed on the unit's files alone).
 - No module imports another package's private names (``from x import _y``, ``x._y``), ours
   included, and none assigns to an attribute of something it imported (monkeypatching).
 - That the commands of the ROS-free rooms run where no ROS is installed at all is shown by
@@ -18,6 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from mta_sim_ros import jit
+
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "mta_sim_ros"
 SOURCES = sorted(PACKAGE.rglob("*.py"))
@@ -30,6 +36,74 @@ def test_the_import_contracts_hold():
                           timeout=300)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     assert "2 kept, 0 broken" in done.stdout
+
+
+def compiled_functions(tree: ast.Module) -> list[ast.FunctionDef]:
+    """The functions decorated ``@jitable`` or ``@entry`` (jit.py)."""
+    return [node for node in tree.body if isinstance(node, ast.FunctionDef)
+            and any(isinstance(d, ast.Name) and d.id in ("jitable", "entry") for d in node.decorator_list)]
+
+
+def module_of(path: Path) -> str:
+    parts = list(path.relative_to(REPO).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def bindings(tree: ast.Module, module: str, is_package: bool) -> dict[str, str]:
+    """Module-level names bound by imports -> the absolute module they come from: ``import numpy as
+    np``: numpy; ``from .laws import rhs``: the package's laws; ``from .. import forces``: forces
+    (a package's names count as the package: conservative)."""
+    package = module.split(".") if is_package else module.split(".")[:-1]
+    found = {}
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                found[a.asname or a.name.split(".")[0]] = a.name if a.asname else a.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            base = node.module
+            if node.level:
+                base = ".".join(package[:len(package) - node.level + 1] + ([node.module] if node.module else []))
+            for a in node.names:
+                found[a.asname or a.name] = base if node.module else f"{base}.{a.name}"
+    return found
+
+
+def foreign_reads(path: Path, unit: set[str], module: str | None = None) -> list[str]:
+    """Names the compiled functions of ``path`` (module ``module``, by default its own) read from
+    modules outside ``unit`` (math and numpy are numba's own)."""
+    tree = ast.parse(path.read_text(), str(path))
+    bound = bindings(tree, module or module_of(path), path.name == "__init__.py")
+    found = []
+    for fn in compiled_functions(tree):
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load) and node.id in bound:
+                source = bound[node.id]
+                if source.split(".")[0] not in ("math", "numpy") and source not in unit:
+                    found.append(f"{fn.name} reads {node.id} from {source}")
+    return found
+
+
+UNIT_MODULES = {"mta_sim_ros." + name[:-3].replace("/", ".") for name in jit.UNIT}
+
+
+def test_the_compiled_unit_is_every_file_of_compiled_code():
+    compiled = {str(p.relative_to(PACKAGE)) for p in SOURCES if compiled_functions(ast.parse(p.read_text()))}
+    assert compiled | {"jit.py"} == set(jit.UNIT)
+
+
+@pytest.mark.parametrize("name", jit.UNIT)
+def test_compiled_code_reads_names_only_from_the_unit(name):
+    assert foreign_reads(PACKAGE / name, UNIT_MODULES) == []
+
+
+def test_the_unit_scan_sees_a_foreign_read(tmp_path):
+    """The scan on compiled code that reads a constant of a file outside the unit, as kernel.py once
+    read forces.MS_TO_KMH, beside a function of the unit it may call."""
+    probe = tmp_path / "motion.py"
+    probe.write_text("import math\nfrom .. import forces\nfrom .laws import steering_rate\n"
+                     "@jitable\ndef f(x):\n    return forces.MS_TO_KMH * math.pi * steering_rate(x)\n")
+    assert foreign_reads(probe, UNIT_MODULES, "mta_sim_ros.physics.kernel.motion") == [
+        "f reads forces from mta_sim_ros.physics.forces"]
 
 
 def imported_names(tree: ast.Module) -> set[str]:

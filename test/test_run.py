@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from mta_sim_ros.bag import read_messages, read_metadata
-from mta_sim_ros.model.loader import load_train
+from mta_sim_ros.physics.loader import load_train
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_TRAIN = REPO / "config" / "trains" / "default.yaml"

@@ -1,4 +1,4 @@
-"""Facts the scaling benchmark (``mta bench scaling``) and the fast right-hand side rely on.
+"""Facts the scaling benchmark (``python -m benchmarks scaling``) and the fast right-hand side rely on.
 No timing here: counts and memory, which do not depend on the machine.
 
 - The kernel's right-hand side (``kernel.rhs``, one fused pass over the carts) does O(n) work:
@@ -23,14 +23,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from mta_sim_ros.model import kernel
-from mta_sim_ros.model.dynamics import Model
-from mta_sim_ros.model.steady import steady_circle
-from mta_sim_ros.sim import Simulation, evaluate_outputs, run_scene
-from mta_sim_ros.tools.bench.scaling import ENDLESS, bench_scene, default_train, scaled_train, steering_amplitude
-
 import trains
+
+from benchmarks.scaling import ENDLESS, bench_scene, default_train, scaled_train, steering_amplitude
+from mta_sim_ros.physics import kernel
+from mta_sim_ros.physics.dynamics import Model
+from mta_sim_ros.physics.steady import steady_circle
+from mta_sim_ros.run.simulation import Simulation, evaluate_outputs, run_scene
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -155,8 +154,8 @@ def test_the_compiled_kernels_free_every_array_they_make():
     code = textwrap.dedent("""
         import math
         from numba.core.runtime import rtsys
-        from mta_sim_ros.sim import Simulation
-        from mta_sim_ros.tools.bench.scaling import ENDLESS, bench_scene, scaled_train
+        from mta_sim_ros.run.simulation import Simulation
+        from benchmarks.scaling import ENDLESS, bench_scene, scaled_train
         sim = Simulation(bench_scene(scaled_train(3), 100.0, duration=ENDLESS))
         assert sim.compiled
 

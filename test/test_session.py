@@ -1,4 +1,4 @@
-"""The node's policy, in process (mta_sim_ros.session.RunSession): no DDS, no sleeping.
+"""The node's policy, in process (mta_sim_ros.node.run_session.RunSession): no DDS, no sleeping.
 
 Time is set, not waited for: the session's steady clock (and the clock that times each tick's
 work) is a FakeClock the test moves. The encoders are the node's own (messages.Encoders, the
@@ -19,11 +19,11 @@ from rosgraph_msgs.msg import Clock
 from visualization_msgs.msg import MarkerArray
 
 from mta_sim_ros.bag import BagError, read_messages, read_metadata
-from mta_sim_ros.diagnostics import ERROR, OK, WARN
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.pacing import CATCH_UP, MAX_TIMER_PERIOD
-from mta_sim_ros.params import PARAMS, ConfigError
-from mta_sim_ros.session import RunSession
+from mta_sim_ros.node.pacing import CATCH_UP, MAX_TIMER_PERIOD
+from mta_sim_ros.node.params import PARAMS, ConfigError
+from mta_sim_ros.node.run_session import RunSession
+from mta_sim_ros.node.status import ERROR, OK, WARN
+from mta_sim_ros.physics.loader import load_scene
 from mta_sim_ros.tools.replay import resimulate
 
 REPO = Path(__file__).resolve().parents[1]
@@ -570,7 +570,7 @@ def test_the_bag_metadata_says_what_ran_and_how_it_ended(run):
 
 def test_the_session_does_not_import_ros():
     """The session runs where rclpy is not installed: nothing it imports pulls it in."""
-    code = ("import sys, mta_sim_ros.session; "
+    code = ("import sys, mta_sim_ros.node.run_session; "
             "print(sorted(m for m in sys.modules if m.split('.')[0] == 'rclpy' or m.split('.')[0].endswith('_msgs')))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=60)
     assert done.returncode == 0, done.stderr
@@ -578,7 +578,7 @@ def test_the_session_does_not_import_ros():
 
 
 def test_a_tick_profile_hears_every_stage_of_every_tick_in_order(tmp_path):
-    """What ``mta bench realtime --stages`` times: start, the six stages, done, once per tick; the
+    """What ``python -m benchmarks realtime --stages`` times: start, the six stages, done, once per tick; the
     markers stage every tick (it is empty when no markers are due), nothing while paused."""
     class Profile:
         def __init__(self):

@@ -4,18 +4,17 @@ for the writer, one tick): a property of the policy, not of the machine's speed.
 
 Two cases the policy exists for: real-time factor 0 at 100 Hz (the tick outruns the writer
 thread, whose backlog had no bound) and 4x at 10 Hz (a 64 KiB chunk spans over a second of
-simulated time there). The measurement is the benchmark's (tools/bench/sigkill.measure): the
+simulated time there). The measurement is the benchmark's (benchmarks/sigkill.measure): the
 node as a process on loopback DDS, frozen with SIGSTOP once it has simulated 8 s, its /clock
 drained, SIGKILL, its bag rebuilt by recover.
 """
 from __future__ import annotations
 
 import pytest
-
-from mta_sim_ros.recorder import BACKLOG_SECONDS, FLUSH_SECONDS
-from mta_sim_ros.tools.bench.sigkill import ClockListener, measure
-
 from dds import DOMAIN, REPO
+
+from benchmarks.sigkill import ClockListener, measure
+from mta_sim_ros.node.recorder import BACKLOG_SECONDS, FLUSH_SECONDS
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
 

@@ -17,14 +17,26 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from benchmarks.runs import (
+    final_error,
+    heading_error,
+    hitch_points,
+    position_error,
+    power_error,
+    simulation,
+    with_tolerances,
+)
+from benchmarks.work_precision import crossing
 from mta_sim_ros.integrate import make_stepper
-from mta_sim_ros.integrate.stability import (REAL_AXIS_LIMIT, UnstableStepError, effective_step,
-                                             stability_function, stable_step)
-from mta_sim_ros.model.guards import fast_modes
-from mta_sim_ros.model.loader import load_scene
-from mta_sim_ros.tools.bench.runs import (final_error, heading_error, hitch_points, position_error, power_error,
-                                          simulation, with_tolerances)
-from mta_sim_ros.tools.bench.work_precision import crossing
+from mta_sim_ros.integrate.stability import (
+    REAL_AXIS_LIMIT,
+    UnstableStepError,
+    effective_step,
+    stability_function,
+    stable_step,
+)
+from mta_sim_ros.physics.guards import fast_modes
+from mta_sim_ros.physics.loader import load_scene
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 RATE = 25.0  # Hz: a 40 ms tick lets the fixed step pass the actuator's limit

@@ -8,14 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from mta_sim_ros import batch
 from mta_sim_ros.config import resolve_config_path
-from mta_sim_ros.messages.markers import cart_widths
-from mta_sim_ros.model import kernel, loader
-from mta_sim_ros.model.steady import steady_circle
-from mta_sim_ros.sim import Simulation, run_scene
+from mta_sim_ros.physics.outline import box_of, cart_widths
+from mta_sim_ros.physics import kernel, loader
+from mta_sim_ros.physics.steady import steady_circle
+from mta_sim_ros.run import batch
+from mta_sim_ros.run import offsets, whole
+from mta_sim_ros.run.simulation import Simulation, run_scene
 from mta_sim_ros.tools.analyze import distance_to_path
-from mta_sim_ros.urdf import box_of
 
 TRAIN = resolve_config_path("trains/default.yaml")
 
@@ -108,7 +108,7 @@ def test_a_straight_train_speeding_up_pulls_mass_times_acceleration_too(accel_fo
 
 
 def model_state(model, speed: float) -> list[float]:
-    from mta_sim_ros.sim import initial_state
+    from mta_sim_ros.run.simulation import initial_state
 
     scene = scene_of(loader.read_yaml_mapping(TRAIN), initial={"speed": speed})
     return initial_state(scene, model).tolist()
@@ -121,7 +121,7 @@ def test_the_last_cart_in_a_steady_turn_pulls_its_resistance_less_its_centripeta
     whose part along the cart's axis is -c Omega^2. Newton along e_n: pull - F_Bn = m_n a_C . e_n."""
     scene = steady_scene(psi, duration=1.0)
     model = Simulation(scene).model
-    from mta_sim_ros.sim import initial_state
+    from mta_sim_ros.run.simulation import initial_state
 
     y = initial_state(scene, model)
     cart, _ = kernel.pulls_of(model.P, y, psi, 3.0)
@@ -137,10 +137,10 @@ def test_the_off_tracking_of_a_run_equals_analyze_exact_nearest_point_search():
     scene = loader.load_scene(resolve_config_path("scenes/headland_turn.yaml"))
     result = batch.run_metrics(scene, fidelity="dynamic")
     n = scene.train.n
-    cart = result.trace[:, kernel.TRACE_HEAD:].reshape(len(result.trace), n, kernel.TRACE_CART)
-    B = cart[:, :, kernel.TR_BX:kernel.TR_BY + 1]
+    cart = result.trace[:, whole.TRACE_HEAD:].reshape(len(result.trace), n, whole.TRACE_CART)
+    B = cart[:, :, whole.TR_BX:whole.TR_BY + 1]
     for k in range(1, n):
-        d, at_end = kernel.path_offsets(*(np.ascontiguousarray(a) for a in (B[:, 0, 0], B[:, 0, 1], B[:, k, 0],
+        d, at_end = offsets.path_offsets(*(np.ascontiguousarray(a) for a in (B[:, 0, 0], B[:, 0, 1], B[:, k, 0],
                                                                               B[:, k, 1])), True)
         exact, exact_end = distance_to_path(B[:, k], B[:, 0], np.arange(len(B)))
         assert np.array_equal(at_end, exact_end)
@@ -158,12 +158,12 @@ def test_the_whole_run_kernel_is_run_scene_tick_for_tick(fidelity):
     run_scene(scene, on_output=outs.append, fidelity=fidelity)
     assert err is None and done == len(outs) - 1 == len(trace) - 1
     n = scene.train.n
-    cart = trace[:, kernel.TRACE_HEAD:].reshape(len(trace), n, kernel.TRACE_CART)
-    assert np.array_equal(trace[:, kernel.TR_TRACTION], [o.traction for o in outs])
-    assert np.array_equal(trace[:, kernel.TR_SPEED], [o.speed for o in outs])
-    assert np.array_equal(cart[:, :, kernel.TR_BX], [o.axle[:, 0] for o in outs])
-    assert np.array_equal(cart[:, :, kernel.TR_HEADING], [o.heading for o in outs])
-    assert np.array_equal(cart[:, 1:, kernel.TR_PHI], [o.hitch_angle for o in outs])
+    cart = trace[:, whole.TRACE_HEAD:].reshape(len(trace), n, whole.TRACE_CART)
+    assert np.array_equal(trace[:, whole.TR_TRACTION], [o.traction for o in outs])
+    assert np.array_equal(trace[:, whole.TR_SPEED], [o.speed for o in outs])
+    assert np.array_equal(cart[:, :, whole.TR_BX], [o.axle[:, 0] for o in outs])
+    assert np.array_equal(cart[:, :, whole.TR_HEADING], [o.heading for o in outs])
+    assert np.array_equal(cart[:, 1:, whole.TR_PHI], [o.hitch_angle for o in outs])
 
 
 def test_a_jackknife_is_a_result_with_its_reason():

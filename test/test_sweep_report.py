@@ -16,9 +16,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mta_sim_ros import batch
-from mta_sim_ros.model import loader
-from mta_sim_ros.sweep import engine, report, spec as sweep_spec
+from mta_sim_ros.physics import loader
+from mta_sim_ros.run import batch
+from mta_sim_ros.sweep import engine, report
+from mta_sim_ros.sweep import spec as sweep_spec
 from mta_sim_ros.validate import InputError
 
 REPO = Path(__file__).resolve().parents[1]

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from mta_sim_ros.integrate.stability import REAL_AXIS_LIMIT, stability_function
-from mta_sim_ros.integrate.steppers import FixedStep, METHODS
+from mta_sim_ros.integrate.steppers import METHODS, FixedStep
 from mta_sim_ros.integrate.tableau import TABLEAUX, Tableau
-from mta_sim_ros.model.spec import INTEGRATOR_METHODS
+from mta_sim_ros.physics.spec import INTEGRATOR_METHODS
 
 TEXTBOOK_ORDER = {"euler": 1, "heun": 2, "ralston": 2, "kutta3": 3, "rk4": 4, "rk38": 4}
 

@@ -1,4 +1,4 @@
-"""Tick statistics and real-time factor of the node (mta_sim_ros.timing), without sleeping."""
+"""Tick statistics and real-time factor of the node (mta_sim_ros.node.timing), without sleeping."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from mta_sim_ros.timing import RealTimeFactor, TickStats, interpolated_percentile
+from mta_sim_ros.node.timing import RealTimeFactor, TickStats, interpolated_percentile
 
 PERCENTILES = (0.0, 1.0, 25.0, 50.0, 90.0, 99.0, 99.9, 100.0)
 
@@ -211,7 +211,7 @@ def test_real_time_factor_bad_arguments():
 
 RESERVE = """
 import json, os, threading
-from mta_sim_ros.timing import reserve_cpu
+from mta_sim_ros.node.timing import reserve_cpu
 stop = threading.Event()
 other = threading.Thread(target=stop.wait)
 other.start()  # returns once the thread runs and has its native id
@@ -244,7 +244,7 @@ def test_reserve_cpu_pins_the_tick_thread_and_moves_the_others_off_it():
         assert r["main"] == [r["cpus"][-1]]
         assert r["other"] == r["cpus"][:-1] and r["cpus"][-1] not in r["other"]
         assert f"CPU {r['cpus'][-1]}" in r["note"]
-    from mta_sim_ros.timing import reserve_cpu
+    from mta_sim_ros.node.timing import reserve_cpu
 
     with pytest.raises(ValueError, match="tick_cpu: CPU 4095 is not available"):
         reserve_cpu(4095)

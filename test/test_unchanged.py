@@ -1,13 +1,18 @@
-"""Behaviour kept through the one-physics-source rewrite: with kink splitting off, ``mta run`` writes
-the same bags as the code before it did, message for message.
+"""Behaviour kept through the rewrites: ``mta run`` writes the same bags as the code before them
+did, message for message.
 
-The code before the rewrite is taken from this repository's history (BEFORE, the last commit with
-the three copies of the equations) and run in a process of its own on that commit's shipped
-scenes; the current code runs the same scene files with ``--no-split-kinks``. Every topic's
-messages, in log-time order, must be equal to the byte (log time, publish time, sequence, CDR
-data); of the metadata only what names versions and paths may differ, and the new option
-``split_kinks`` is recorded. The train's frames (topics.FRAME_TOPICS), added since, are the only
-new topics. Needs the repository's history (a clone without --depth).
+Two rewrites are held to the code before them, each taken from this repository's history and run
+in a process of its own on that commit's shipped scenes:
+
+- ONE_PHYSICS (the last commit with three copies of the equations): the current code run with
+  ``--no-split-kinks``, the option added since; the train's frames (topics.FRAME_TOPICS), added
+  since, are the only new topics and ``split_kinks`` the only new metadata;
+- HOUSE (the last commit with the flat package, before the rooms of docs/architecture.md): the
+  current code run as it is; every topic and every metadata field the same.
+
+Every topic's messages, in log-time order, must be equal to the byte (log time, publish time,
+sequence, CDR data); of the metadata only what names versions and paths may differ. Needs the
+repository's history (a clone without --depth).
 """
 from __future__ import annotations
 
@@ -21,10 +26,11 @@ import pytest
 from mcap.reader import make_reader
 
 from mta_sim_ros import cli
-from mta_sim_ros.topics import FRAME_TOPICS, qualified
+from mta_sim_ros.messages.topics import FRAME_TOPICS, qualified
 
 REPO = Path(__file__).resolve().parents[1]
-BEFORE = "cecef7b730da61fa89761be26112319cd89716ad"
+ONE_PHYSICS = "cecef7b730da61fa89761be26112319cd89716ad"
+HOUSE = "555ebc7b202a8917f3b5f841e8b9f89b3d55bf7b"
 VARYING_METADATA = {"package_version", "scene_file", "train_file"}  # versions and paths
 
 
@@ -39,17 +45,16 @@ def messages_by_topic(path: Path):
     return {topic: sorted(rows, key=lambda row: row[0]) for topic, rows in topics.items()}, metadata
 
 
-@pytest.fixture(scope="module")
-def before(tmp_path_factory):
-    """The code and scenes of BEFORE, and the bags it writes for every shipped scene."""
-    root = tmp_path_factory.mktemp("before")
-    present = subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{BEFORE}^{{commit}}"], capture_output=True)
-    assert present.returncode == 0, f"commit {BEFORE} is not in this clone's history (clone without --depth)"
-    archive = subprocess.run(["git", "-C", str(REPO), "archive", BEFORE, "mta_sim_ros", "config"],
+def bags_of(commit: str, root: Path, scenes: int) -> list[Path]:
+    """The shipped scenes of ``commit`` (there must be ``scenes`` of them), each run by that
+    commit's code into root/bags/<scene>.mcap; returns the scene files."""
+    present = subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{commit}^{{commit}}"], capture_output=True)
+    assert present.returncode == 0, f"commit {commit} is not in this clone's history (clone without --depth)"
+    archive = subprocess.run(["git", "-C", str(REPO), "archive", commit, "mta_sim_ros", "config"],
                              capture_output=True, check=True).stdout
     subprocess.run(["tar", "-x", "-C", str(root)], input=archive, check=True)
-    scenes = sorted((root / "config" / "scenes").glob("*.yaml"))
-    assert len(scenes) == 9
+    found = sorted((root / "config" / "scenes").glob("*.yaml"))
+    assert len(found) == scenes
     code = textwrap.dedent(f"""
         import sys
         from mta_sim_ros import cli
@@ -58,24 +63,53 @@ def before(tmp_path_factory):
             name = scene.rsplit("/", 1)[1][:-5]
             assert cli.main(["run", "--scene", scene, "--bag", {str(root)!r} + "/bags/" + name + ".mcap", "--quiet"]) == 0
     """)
-    subprocess.run([sys.executable, "-c", code, *map(str, scenes)], cwd=root, check=True, timeout=900,
+    subprocess.run([sys.executable, "-c", code, *map(str, found)], cwd=root, check=True, timeout=900,
                    env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin", "HOME": str(root)})
-    return root, scenes
+    return found
 
 
-def test_without_kink_splitting_the_shipped_scenes_bags_are_unchanged(before, tmp_path):
-    root, scenes = before
+def compare(old_bag: Path, new_bag: Path, scene: str, new_topics_expected=frozenset(), new_fields=frozenset()):
+    """The bags hold the same messages on every topic of the old one (the new one may add
+    ``new_topics_expected``) and the same metadata but for VARYING_METADATA and ``new_fields``."""
+    old_topics, old_meta = messages_by_topic(old_bag)
+    new_topics, new_meta = messages_by_topic(new_bag)
+    assert new_topics.keys() == old_topics.keys() | set(new_topics_expected), scene
+    for topic in old_topics:
+        assert new_topics[topic] == old_topics[topic], f"{scene}: {topic} differs"
+    assert new_meta.keys() == old_meta.keys()
+    old_run, new_run = old_meta["mta_sim_ros"], dict(new_meta["mta_sim_ros"])
+    for field in new_fields:
+        new_run.pop(field)
+    assert new_run.keys() == old_run.keys()
+    assert {k for k in old_run if new_run[k] != old_run[k]} <= VARYING_METADATA, scene
+    return new_meta["mta_sim_ros"]
+
+
+@pytest.fixture(scope="module")
+def before_one_physics(tmp_path_factory):
+    root = tmp_path_factory.mktemp("one_physics")
+    return root, bags_of(ONE_PHYSICS, root, 9)
+
+
+@pytest.fixture(scope="module")
+def before_house(tmp_path_factory):
+    root = tmp_path_factory.mktemp("house")
+    return root, bags_of(HOUSE, root, 10)
+
+
+def test_without_kink_splitting_the_shipped_scenes_bags_are_unchanged(before_one_physics, tmp_path):
+    root, scenes = before_one_physics
     for scene in scenes:
         new = tmp_path / f"{scene.stem}.mcap"
         assert cli.main(["run", "--scene", str(scene), "--bag", str(new), "--quiet", "--no-split-kinks"]) == 0
-        old_topics, old_meta = messages_by_topic(root / "bags" / f"{scene.stem}.mcap")
-        new_topics, new_meta = messages_by_topic(new)
-        # the topics added since (the train's frames for ROS tools) come on top; the old ones are unchanged
-        assert new_topics.keys() == old_topics.keys() | {qualified(t) for t in FRAME_TOPICS}, scene.stem
-        for topic in old_topics:
-            assert new_topics[topic] == old_topics[topic], f"{scene.stem}: {topic} differs"
-        assert new_meta.keys() == old_meta.keys()
-        old_run, new_run = old_meta["mta_sim_ros"], new_meta["mta_sim_ros"]
-        assert new_run.pop("split_kinks") == "False"
-        assert new_run.keys() == old_run.keys()
-        assert {k for k in old_run if new_run[k] != old_run[k]} <= VARYING_METADATA, scene.stem
+        run = compare(root / "bags" / f"{scene.stem}.mcap", new, scene.stem,
+                      new_topics_expected={qualified(t) for t in FRAME_TOPICS}, new_fields={"split_kinks"})
+        assert run["split_kinks"] == "False"
+
+
+def test_the_rooms_left_every_shipped_scenes_bag_as_it_was(before_house, tmp_path):
+    root, scenes = before_house
+    for scene in scenes:
+        new = tmp_path / f"{scene.stem}.mcap"
+        assert cli.main(["run", "--scene", str(scene), "--bag", str(new), "--quiet"]) == 0
+        compare(root / "bags" / f"{scene.stem}.mcap", new, scene.stem)

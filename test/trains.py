@@ -7,8 +7,7 @@ import math
 
 import numpy as np
 
-from mta_sim_ros.model.spec import (Actuator, Cart, Draft, Initial, Integrator, Rolling, Scene,
-                                    Table, Traction, Train)
+from mta_sim_ros.physics.spec import Actuator, Cart, Draft, Initial, Integrator, Rolling, Scene, Table, Traction, Train
 
 # (length l, hitch_offset a, com_offset c, mass m, yaw_inertia J) of realistic carts
 CARTS = [

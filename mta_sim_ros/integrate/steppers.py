@@ -5,7 +5,7 @@ the node agree for the same command sequence. ``nfev`` counts the right-hand-sid
 the cost measure that does not depend on the machine; ``kinks`` counts the points where a step
 was split because the right-hand side is not smooth there.
 
-Fixed-step methods are tableaux (``tableau.py``) stepped by one routine, ``model.kernel.advance``:
+Fixed-step methods are tableaux (``tableau.py``) stepped by one routine, ``rk.advance``:
 for a model with a kernel (``tick``: the dynamic and kinematic levels) the whole tick runs in one
 call, compiled, or as plain Python on request; for any other right-hand side (``advance(fun, ...)``:
 the slip level, a benchmark's time-dependent input) the same routine runs as Python around the
@@ -13,7 +13,7 @@ callable. Adaptive methods are scipy's OdeSolver classes, restarted at every tic
 changes there) and at every kink.
 
 Kinks (``split_kinks``): where the steering actuator's rate limit lets go the steering rate has
-a corner, and so do the force laws where a limit engages (``model.kernel.switches``). A method
+a corner, and so do the force laws where a limit engages (``physics.kernel.switches``). A method
 stepping straight across one keeps only first-order accuracy in that step, and an adaptive
 method's error control can accept such a step; splitting the step there keeps each method's
 order. The actuator's release is known in closed form at the start of a tick; the force-law
@@ -26,8 +26,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..model import kernel
-from ..model.spec import INTEGRATOR_METHODS
+from ..physics import kernel
+from . import rk
+from ..physics.spec import INTEGRATOR_METHODS
 from ..validate import MAX_STEPS_PER_TICK
 from .tableau import TABLEAUX, Tableau
 
@@ -74,11 +75,11 @@ class FixedStep:
 
     def tick(self, P: np.ndarray, y0: np.ndarray, t0: float, t1: float, command: float, v_set: float,
              compiled: bool = True) -> tuple[np.ndarray, bool]:
-        """The model with packed constants P (``model.kernel.pack``) from t0 to t1 with (command,
+        """The model with packed constants P (``physics.kernel.pack``) from t0 to t1 with (command,
         v_set) held, in one call: (y1, clear), clear = y1 is finite and clearly inside the jackknife
-        limits (``model.kernel.clear``; otherwise the caller runs ``guards.check_state``).
+        limits (``physics.kernel.clear``; otherwise the caller runs ``guards.check_state``).
         ``compiled`` = False runs the kernel as plain Python (the same numbers)."""
-        run = kernel.tick if compiled else kernel.tick.py_func
+        run = rk.tick if compiled else rk.tick.py_func
         y1, clear, nfev, kinks = run(P, self._T, np.ascontiguousarray(y0, dtype=np.float64), float(command),
                                      float(v_set), float(t0), float(t1), self.step, self.split_kinks)
         self.nfev += nfev
@@ -87,7 +88,7 @@ class FixedStep:
 
     def advance(self, fun: Fun, t0: float, y0: np.ndarray, t1: float) -> np.ndarray:
         """y' = fun(t, y) from t0 to t1 (any callable; no kink information: none are split)."""
-        y, nfev, _ = kernel.advance(_callable_rhs(fun), kernel.no_switches, _NO_PARAMS, self._T,
+        y, nfev, _ = rk.advance(_callable_rhs(fun), kernel.no_switches, _NO_PARAMS, self._T,
                                     np.array(y0, dtype=float), 0.0, 0.0, float(t0), float(t1), float(self.step),
                                     False)
         self.nfev += nfev
@@ -96,7 +97,7 @@ class FixedStep:
 
 class Held:
     """A kernel model's right-hand side with its non-smooth laws held on one branch each (see
-    ``model.kernel.rhs``): what an adaptive solver steps between two kinks."""
+    ``physics.kernel.rhs``): what an adaptive solver steps between two kinks."""
 
     def __init__(self, P: np.ndarray, command: float, v_set: float, compiled: bool = True):
         self.P, self.command, self.v_set = P, float(command), float(v_set)

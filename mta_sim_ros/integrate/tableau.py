@@ -2,7 +2,7 @@
 
     k_i = f(t + c_i h, y + h sum_j a_ij k_j),   y_next = y + h sum_i b_i k_i
 
-One stepping routine steps every table (``model.kernel.rk_step``, compiled and as plain Python),
+One stepping routine steps every table (``rk.rk_step``, compiled and as plain Python),
 and everything else is derived from the table: the order (from the order conditions), the
 stability function R(z) = 1 + sum_k z^k b^T A^(k-1) 1 (exact, in rationals) and its real-axis
 stability limit (``integrate.stability``). Adding a method is adding a table to ``TABLEAUX``.
@@ -108,7 +108,7 @@ class Tableau:
 
     @cached_property
     def packed(self) -> np.ndarray:
-        """The tableau as the kernel's stepping routine reads it (``model.kernel.rk_step``), float64
+        """The tableau as the kernel's stepping routine reads it (``rk.rk_step``), float64
         (s + 2) x (s + 1): row i < s (d_i, numerators of a_i0..a_i,s-1) over the row's common
         denominator d_i; row s (d, numerators of b_0..b_s-1); row s + 1 (0, c_0..c_s-1)."""
         s = self.stages

@@ -11,9 +11,9 @@ All of it goes through one serializer, :mod:`mta_sim_ros.bag.cdr`; only numpy an
 library besides, so ``mta run`` works without a ROS install and writes the node's bytes.
 """
 from .diagnostics import DIAGNOSTICS_TYPE, HARDWARE_ID, diagnostic_array, encode_diagnostics, format_value
+from .encoders import CommandEncoder, OutputEncoder, float64_template
 from .frames import FrameEncoder
-from .markers import MARKERS_TYPE, TrainMarkers, cart_color, cart_widths, train_markers
-from .outputs import CommandEncoder, OutputEncoder, float64_template
+from .markers import MARKERS_TYPE, TrainMarkers, cart_color, train_markers
 
 
 class Encoders:
@@ -42,7 +42,6 @@ __all__ = [
     "OutputEncoder",
     "TrainMarkers",
     "cart_color",
-    "cart_widths",
     "diagnostic_array",
     "encode_diagnostics",
     "format_value",

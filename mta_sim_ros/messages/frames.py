@@ -34,7 +34,7 @@ import numpy as np
 from ..bag.cdr import Slot, encode
 from ..bag.template import TIME_SLOTS, CdrTemplate
 from ..bag.writer import stamp, stamp_parts
-from ..model.actuator import steering_rate
+from ..physics.actuator import steering_rate
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"

@@ -2,7 +2,7 @@
 
 Per cart k (ns / id = k): ``outline``, a closed LINE_STRIP rectangle along the cart's axis from
 A_k back to the rearmost of B_k and its rear hitch point (A_{k+1}, or ``out.rear_hitch`` for the
-last cart), as wide as :func:`cart_widths` says; ``axle``, a LINE_LIST segment through B_k across
+last cart), as wide as :func:`~mta_sim_ros.physics.outline.cart_widths` says; ``axle``, a LINE_LIST segment through B_k across
 the axis, as long as the cart is wide; ``label``, a TEXT_VIEW_FACING with the cart's name at the
 outline's centre. Plus one SPHERE_LIST (ns ``hitches``, id 0) of the points A_k, each in its
 cart's colour. Everything lies in z = 0 with identity poses; stable ids make every message
@@ -18,15 +18,13 @@ import math
 from ..bag.cdr import Slot
 from ..bag.template import TIME_SLOTS, CdrTemplate
 from ..bag.writer import stamp, stamp_parts
+from ..physics.outline import cart_widths
 
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 
 # visualization_msgs/Marker constants (Marker.msg).
 LINE_STRIP, LINE_LIST, SPHERE_LIST, TEXT_VIEW_FACING = 4, 5, 7, 9
 ADD = 0
-
-#: Width of a cart's outline when nothing says otherwise (the tractor, a cart without draft), m.
-DEFAULT_WIDTH = 2.5
 
 # Marker namespaces, one per kind of marker; within each the id is the cart index (the single
 # sphere list of hitch points has id 0).
@@ -52,17 +50,6 @@ _PALETTE = (
 
 # Points per cart in coordinates() order: the outline's 5 corners, the axle's 2 ends, the label.
 _POINTS_PER_CART = 8
-
-
-def cart_widths(train) -> list[float]:
-    """Width of each cart's outline, m: DEFAULT_WIDTH for the tractor; for a towed cart the
-    widest ``Draft.width`` acting on it (the draft width is taken as metres), else
-    DEFAULT_WIDTH."""
-    widths = [DEFAULT_WIDTH]
-    for cart in train.carts[1:]:
-        drafts = [d.width for d in train.draft if d.cart == cart.name]
-        widths.append(max(drafts, default=DEFAULT_WIDTH))
-    return widths
 
 
 def coordinates(out, train, widths: list[float]) -> list[float]:

@@ -26,9 +26,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .. import __version__
-from ..batch import OK, metric_names, run_metrics
 from ..integrate import IntegrationError
-from ..model.guards import ModelValidityError
+from ..physics.guards import ModelValidityError
+from ..run.batch import OK, metric_names, run_metrics
 from ..validate import InputError, fail, one_line, show
 from . import spec as sweep_spec
 
@@ -109,8 +109,8 @@ def warm_up() -> str:
     """Compile (or load from numba's cache) the kernels in this process: a short run of the
     default train. Returns what runs (``Simulation.compiled_note``)."""
     from ..config import resolve_config_path
-    from ..model.loader import load_scene
-    from ..sim import Simulation
+    from ..physics.loader import load_scene
+    from ..run.simulation import Simulation
 
     scene = load_scene(resolve_config_path("scenes/straight_pass.yaml"))
     scene = replace(scene, duration=0.1)

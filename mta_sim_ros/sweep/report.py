@@ -48,9 +48,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import validate
+from ..run.batch import OK, STOPPED
 from ..validate import InputError, fail, show
-
-from ..batch import OK, STOPPED
 from .engine import DROPPED, REFUSED, RESULTS, SPEC_COPY, SPEC_PATH
 
 VERDICTS = (OK, STOPPED, DROPPED, REFUSED)
@@ -560,9 +559,9 @@ def export(folder: str | os.PathLike, run, out: str | os.PathLike, spec_path: st
     every file it names is an absolute path (relative ones meant the spec's own folder, which the
     results do not record). The train rebuilt must have the run's train hash. A run that is not
     in the results, or whose scheme was dropped or refused, raises InputError."""
+    from ..physics import loader
     from . import engine
     from . import spec as sweep_spec
-    from ..model import loader
 
     folder = Path(folder)
     df = load_results(folder)

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from .. import validate
-from ..model import loader
+from ..physics import loader
 from ..validate import InputError, Range
 
 METHODS = ("grid", "random", "saltelli")

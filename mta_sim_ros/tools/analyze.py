@@ -62,8 +62,8 @@ import numpy as np
 
 from ..bag import BagError, read_messages, read_metadata
 from ..compat import legend_below, trapezoid
-from ..model.steady import SteadyStateError, steady_circle
-from ..runlog import RECORD, recorded_scene_name, recorded_train
+from ..node.runlog import RECORD, recorded_scene_name, recorded_train
+from ..physics.steady import SteadyStateError, steady_circle
 from ..validate import EXIT_INPUT, InputError, output_folder
 
 # The topics the simulator writes, by the last component of their names.

@@ -21,9 +21,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
-    from ..equations import build, render
-    from ..model import spec
-    from ..model.loader import load_file
+    from ..physics import spec
+    from ..physics.loader import load_file
+    from ..symbolic.equations import build, render
 
     loaded = load_file(resolve_config_path(args.train))
     train = loaded.train if isinstance(loaded, spec.Scene) else loaded

@@ -26,9 +26,9 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 
 from ..config import resolve_config_path
-from ..model.loader import SpecError, load_scene
-from ..ros_msgs import QOS
-from ..paths import field_path, lateral_error
+from ..controllers.pursuit.paths import field_path, lateral_error
+from ..node.ros_msgs import QOS
+from ..physics.loader import SpecError, load_scene
 from ..validate import Range, Rule, number_arg, output_file, path_arg
 from .maneuver import spin_and_report
 

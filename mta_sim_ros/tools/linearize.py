@@ -33,10 +33,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
-    from ..linear import linearize, markdown
-    from ..model import spec
-    from ..model.loader import load_file
-    from ..model.steady import SteadyStateError
+    from ..physics import spec
+    from ..physics.loader import load_file
+    from ..physics.steady import SteadyStateError
+    from ..symbolic.linear import linearize, markdown
 
     loaded = load_file(resolve_config_path(args.train))
     train = loaded.train if isinstance(loaded, spec.Scene) else loaded

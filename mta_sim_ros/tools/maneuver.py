@@ -23,11 +23,11 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from ..model import maneuvers
 from ..config import resolve_config_path
-from ..model.loader import SpecError, load_scene
-from ..ros_msgs import QOS
-from ..sim import speed_setpoint, table_value
+from ..node.ros_msgs import QOS
+from ..physics import maneuvers
+from ..physics.loader import SpecError, load_scene
+from ..run.simulation import speed_setpoint, table_value
 from ..validate import DURATION, Range, number_arg
 
 

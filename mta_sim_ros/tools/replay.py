@@ -44,12 +44,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..bag import BagError, read_messages, read_metadata
-from ..commands import ackermann_setting, command_ranges, hold, twist_setting
-from ..runlog import RECORD, recorded_options, recorded_scene
-from ..topics import WATCHDOG_TOPIC
-from ..model.spec import INTEGRATOR_METHODS as METHODS
-from ..validate import (MAX_TICKS, NON_NEGATIVE, POSITIVE, InputError, Range, fail, is_finite, number_arg, show,
-                        step_floor)
+from ..messages.topics import WATCHDOG_TOPIC
+from ..node.commands import ackermann_setting, command_ranges, hold, twist_setting
+from ..node.runlog import RECORD, recorded_options, recorded_scene
+from ..physics.spec import INTEGRATOR_METHODS as METHODS
+from ..validate import (
+    MAX_TICKS,
+    NON_NEGATIVE,
+    POSITIVE,
+    InputError,
+    Range,
+    fail,
+    is_finite,
+    number_arg,
+    show,
+    step_floor,
+)
 from .run import Progress
 
 #: Outputs compared by --resimulate (last name component of the topic).
@@ -120,7 +130,7 @@ def parse_qos(metadata: dict[str, str]):
     import yaml
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    from ..ros_msgs import QOS
+    from ..node.ros_msgs import QOS
 
     try:
         offered = yaml.safe_load(metadata.get("offered_qos_profiles", "") or "null")
@@ -185,7 +195,7 @@ def _play(args, reader, summary, selected: set[str], origin: int, span: int) -> 
     from rclpy.duration import Duration
     from rclpy.signals import SignalHandlerOptions
 
-    from ..ros_msgs import message_class
+    from ..node.ros_msgs import message_class
 
     rclpy.init(args=["mta_replay", *getattr(args, "ros_args", [])],
                signal_handler_options=SignalHandlerOptions.NO)
@@ -409,9 +419,9 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
     """Re-run the bag's commands through a fresh Simulation and compare the outputs with the
     bag's (see the module docstring). Raises ResimulationError or BagError."""
     from ..integrate import IntegrationError
-    from ..model.guards import ModelValidityError
-    from ..sim import Simulation
-    from ..topics import output_messages
+    from ..messages.topics import output_messages
+    from ..physics.guards import ModelValidityError
+    from ..run.simulation import Simulation
 
     if method is not None and method not in METHODS:
         fail("--method", show(method), f"one of {', '.join(METHODS)}")

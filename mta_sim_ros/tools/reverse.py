@@ -51,9 +51,9 @@ def main(args: argparse.Namespace) -> int:
     from std_msgs.msg import Float64
 
     from ..config import resolve_config_path
-    from ..model.loader import load_scene
-    from ..reversing import design, design_curve
-    from ..ros_msgs import QOS
+    from ..controllers.reversing.controller import design, design_curve
+    from ..node.ros_msgs import QOS
+    from ..physics.loader import load_scene
     from .maneuver import spin_and_report
 
     scene = load_scene(resolve_config_path(args.scene))  # a bad scene: cli.main says it in one line, exit 2

@@ -20,17 +20,28 @@ from pathlib import Path
 
 from .. import __version__
 from ..bag import DEFAULT_QOS_YAML, BagError, BagWriter
-from ..fidelity import LEVELS, choose
-from ..messages import CommandEncoder, FrameEncoder, OutputEncoder
 from ..config import resolve_config_path
-from ..model.loader import load_scene
-from ..model.spec import INTEGRATOR_METHODS
-from ..sim import run_scene
-from ..summary import RunSummary
-from ..topics import FRAME_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, TOPICS, qualified
-from ..urdf import robot_model
-from ..validate import (EXIT_INPUT, MAX_STEPS_PER_TICK, POSITIVE, PUBLISH_RATE, fail, number_arg, output_file,
-                        show, step_count, step_rule, tick_count)
+from ..messages import CommandEncoder, FrameEncoder, OutputEncoder
+from ..messages.topics import FRAME_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, TOPICS, qualified
+from ..messages.urdf import robot_model
+from ..physics.loader import load_scene
+from ..physics.spec import INTEGRATOR_METHODS
+from ..run.fidelity import LEVELS, choose
+from ..run.simulation import run_scene
+from ..run.summary import RunSummary
+from ..validate import (
+    EXIT_INPUT,
+    MAX_STEPS_PER_TICK,
+    POSITIVE,
+    PUBLISH_RATE,
+    fail,
+    number_arg,
+    output_file,
+    show,
+    step_count,
+    step_rule,
+    tick_count,
+)
 
 EXIT_STOPPED = 3
 
@@ -111,7 +122,7 @@ def run_options(args: argparse.Namespace, scene, choice) -> dict:
     checked against each other (the step within the tick) and the run's size (validate.run_size)."""
     method = args.method
     if choice.level == "slip" and not method:
-        from ..model.slip import DEFAULT_METHOD as method  # the slip level's own (its tyres are stiff)
+        from ..physics.slip import DEFAULT_METHOD as method
     rate = args.rate or scene.publish_rate
     step = args.step or (1.0 / rate if choice.level == "slip" and not args.method
                          else scene.integrator.step)  # as Simulation takes them

@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..params import argument
+from ..node.params import argument
 from ..validate import EXIT_INPUT, InputError, output_folder, path_arg
 
 
@@ -34,14 +34,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _mta(*args: str, **kwargs) -> subprocess.Popen:
-    from ..loopback import loopback_env
+    from ..node.loopback import loopback_env
 
     return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", *args], env=loopback_env(), **kwargs)
 
 
 def main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
-    from ..model.loader import load_scene
+    from ..physics.loader import load_scene
 
     scene = resolve_config_path(args.scene)
     try:

@@ -1,0 +1,249 @@
+"""Backing a train up a straight line: a state-feedback gain from the linear model, and the closed
+loop run on the simulator. No ROS (``tools/reverse.py`` is the same controller as a ROS node).
+
+Reversing, every hitch angle grows at V / l_k (linear.py: the open loop is unstable). The
+controller steers the tractor so that the last cart's axle B_n follows the line y = 0 (the train
+pointing along +x, driving towards -x): with x = (y, th_1, phi_2..phi_n, psi) the linear model's
+state about straight motion at the speed V < 0 and u the steering command,
+
+    u = -K x,   K = R^-1 B^T P,   P solving A^T P + P A - P B R^-1 B^T P + Q = 0   (LQR, scipy)
+
+with Q = q_offset C^T C + q_hitch sum phi_k^2 + q_heading th_n^2, C x = y_Bn the last axle's lateral
+offset to first order (y_Bn = y - sum of each segment's length times its heading: A_1 to B_1, B_k
+to A_{k+1}, A_k to B_k), R = r. The gain sees the last axle at most MAX_ERROR from the line (the
+line moved towards the train by the rest), and the command is clipped to the actuator's
+max_angle; where the steering the loop asks for still passes the actuator's angle or rate limit
+the train folds (python -m benchmarks reverse says where).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...symbolic.linear import linearize
+
+#: m: the largest lateral error of the last axle the gain is shown (farther away, the line is
+#: moved towards the train by the difference): the linear gain's steering for a large offset would
+#: pass the actuator's angle, and the train fold
+MAX_ERROR = 0.5
+
+
+@dataclass
+class Gains:
+    speed: float
+    K: np.ndarray  # 1 x (n + 2): u = -K x
+    states: list
+    closed_loop: np.ndarray  # eigenvalues of A - B K
+    weights: dict
+    C: np.ndarray  # the last axle's lateral offset, C x
+    max_error: float = MAX_ERROR
+
+    def command(self, x: np.ndarray, max_angle: float) -> float:
+        """u = -K x clipped to the actuator's max_angle, x taken with the last axle at most
+        ``max_error`` from the line (x's lateral offset moved so)."""
+        offset = float(self.C @ x)
+        if abs(offset) > self.max_error:
+            x = x.copy()
+            x[0] -= offset - math.copysign(self.max_error, offset)
+        return float(np.clip(-(self.K @ x)[0], -max_angle, max_angle))
+
+
+def last_axle_row(train) -> np.ndarray:
+    """C with C x = the last axle's lateral offset to first order, x = (y, th_1, phi_2..phi_n, psi)."""
+    n = train.n
+    # headings th_k = th_1 - sum_{j<=k} phi_j; each segment's length times its heading
+    lengths = []  # per cart k: the length behind A_k to B_k, plus B_k to A_{k+1} if k < n
+    for k, cart in enumerate(train.carts):
+        lengths.append(cart.length + (cart.hitch_offset if k < n - 1 else 0.0))
+    row = np.zeros(n + 2)
+    row[0] = 1.0
+    for k in range(n):
+        row[1] -= lengths[k]  # th_1's share
+        for j in range(1, k + 1):  # phi_{j+1} enters th_k with a minus sign
+            row[1 + j] += lengths[k]
+    return row
+
+
+def heading_row(train) -> np.ndarray:
+    """D with D x = th_n, the last cart's heading."""
+    row = np.zeros(train.n + 2)
+    row[1] = 1.0
+    row[2:train.n + 1] = -1.0
+    return row
+
+
+def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 10.0, q_heading: float = 10.0,
+           r: float = 1.0) -> Gains:
+    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0)."""
+    from scipy.linalg import solve_continuous_are
+
+    model = linearize(train, "straight", speed)
+    C, D = last_axle_row(train), heading_row(train)
+    Q = q_offset * np.outer(C, C) + q_heading * np.outer(D, D)
+    for k in range(2, train.n + 1):
+        Q[k, k] += q_hitch
+    Q += 1e-9 * np.eye(len(Q))  # the steering angle's own weight: Q positive definite
+    R = np.array([[r]])
+    P = solve_continuous_are(model.A, model.B, Q, R)
+    K = np.linalg.solve(R, model.B.T @ P)
+    closed = np.linalg.eigvals(model.A - model.B @ K)
+    return Gains(speed, K, model.states, closed,
+                 {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}, C)
+
+
+def state_of(out) -> np.ndarray:
+    """x = (y, th_1, phi_2..phi_n, psi) of an Outputs sample: A_1's y, the headings, the hitch
+    angles, the applied steering angle."""
+    return np.array([out.front[0][1], out.heading[0], *out.hitch_angle, out.steering])
+
+
+@dataclass
+class ReverseRun:
+    distance: float  # m reversed by the last axle (along -x)
+    max_error: float  # m, largest |y_Bn| after the settling distance
+    rms_error: float
+    max_hitch_deg: float
+    max_steering_deg: float
+    stopped: str  # "" or why the run stopped (jackknife)
+    saturated: float  # share of ticks the command hit max_angle
+    trace: np.ndarray  # t, x_Bn, y_Bn, hitch angles..., steering
+
+
+def _run(distance: float, rows: list, errors: list, stopped: str, saturated: int, n: int) -> ReverseRun:
+    """A ReverseRun of a closed loop's trace rows (t, B_n x, y, hitch angles, steering) and errors."""
+    trace = np.array(rows) if rows else np.zeros((0, 3 + n))
+    e = np.abs(np.array(errors)) if errors else np.array([math.nan])
+    return ReverseRun(
+        distance=distance, max_error=float(e.max()), rms_error=float(np.sqrt(np.mean(e ** 2))),
+        max_hitch_deg=math.degrees(float(np.max(np.abs(trace[:, 3:3 + n - 1])))) if len(trace) and n > 1 else 0.0,
+        max_steering_deg=math.degrees(float(np.max(np.abs(trace[:, -1])))) if len(trace) else 0.0,
+        stopped=stopped, saturated=saturated / max(len(rows), 1), trace=trace)
+
+
+def reverse(scene, gains: Gains, distance: float, settle: float = 0.0, offset: float = 0.0) -> ReverseRun:
+    """Back the scene's train along y = 0 from its start (``offset`` m to the side) until its last
+    axle has reversed ``distance`` m, the gain steering each tick on the state after the last."""
+    def shift(sim):
+        sim.y[sim.model.layout.y] += offset
+
+    return drive(scene, gains, state_of, lambda before, after: before.axle[-1][0] - after.axle[-1][0],
+                 lambda out: out.axle[-1][1], distance, settle, shift)
+
+
+def drive(scene, gains, state, progress, error, distance: float, settle: float, setup=None) -> ReverseRun:
+    """The closed loop on the simulator: each tick steers ``gains.command(state(outputs))`` at
+    ``gains.speed``; ``progress(before, after)`` is the distance a tick adds (m), ``error(outputs)`` the
+    last axle's error, kept after ``settle`` m; until ``distance`` m, a guard stops the run (its reason
+    kept), or the train makes no headway."""
+    from ...integrate import IntegrationError
+    from ...physics.guards import ModelValidityError
+    from ...run.simulation import Simulation
+
+    sim = Simulation(scene)
+    if setup is not None:
+        setup(sim)
+    max_angle = scene.train.actuator.max_angle
+    out = sim.outputs()
+    travelled, rows, errors, stopped, saturated = 0.0, [], [], "", 0
+    while travelled < distance:
+        command = gains.command(state(out), max_angle)
+        saturated += abs(command) >= max_angle
+        try:
+            sim.advance(command, gains.speed)
+        except (ModelValidityError, IntegrationError) as err:
+            stopped = str(err)
+            break
+        before, out = out, sim.outputs()
+        travelled += float(progress(before, out))
+        rows.append([out.t, out.axle[-1][0], out.axle[-1][1], *out.hitch_angle, out.steering])
+        if travelled >= settle:
+            errors.append(error(out))
+        if out.t > 10.0 * distance / abs(gains.speed) + 60.0:
+            stopped = "the train did not reverse the distance (it stood or went forward)"
+            break
+    return _run(travelled, rows, errors, stopped, saturated, scene.train.n)
+
+
+# -- along a gentle curve -----------------------------------------------------------------------------
+
+def steering_for(train, radius: float) -> float:
+    """The steering angle psi_0 > 0 whose steady circles put the last axle on ``radius`` (m, a left
+    turn; negate it for a right one): R_Bn falls as psi grows, found by bisection on the closed form."""
+    from ...physics.steady import SteadyStateError, steady_circle
+
+    lo, hi = 1e-6, train.actuator.max_angle
+    try:
+        if steady_circle(train, hi).R_B[-1] > radius:
+            raise ValueError(f"radius: {radius:g} m is tighter than the steady turn at max_angle allows")
+    except SteadyStateError:
+        pass  # no steady turn at max_angle: the root lies below it
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        try:
+            r = steady_circle(train, mid).R_B[-1]
+        except SteadyStateError:
+            hi = mid
+            continue
+        lo, hi = (mid, hi) if r > radius else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+@dataclass
+class CurveGains:
+    """u = psi_0 - K (x - x_0), x = (rho, eta, phi_2..phi_n, psi) about the steady reversing turn."""
+
+    speed: float
+    steering: float  # psi_0
+    K: np.ndarray
+    point: np.ndarray  # x_0
+    closed_loop: np.ndarray
+    R_A1: float  # the tractor's steered axle's circle
+    radius: float  # the last axle's
+
+    def command(self, x: np.ndarray, max_angle: float) -> float:
+        return float(np.clip(self.steering - (self.K @ (x - self.point))[0], -max_angle, max_angle))
+
+
+def design_curve(train, speed: float, radius: float, side: float = 1.0, q_offset: float = 1.0,
+                 q_hitch: float = 10.0, q_heading: float = 10.0, r: float = 1.0) -> CurveGains:
+    """LQR about the steady turn that puts the last axle on a circle of ``radius`` (``side`` +1
+    left, -1 right), reversing at ``speed`` < 0: the linear model about that turn (linear.py),
+    weights on the tractor's radial offset and heading and on each hitch angle's deviation."""
+    from scipy.linalg import solve_continuous_are
+
+    from ...physics.steady import steady_circle
+
+    psi0 = math.copysign(steering_for(train, radius), side)
+    model = linearize(train, "turn", speed, psi0)
+    size = train.n + 2
+    Q = np.zeros((size, size))
+    Q[0, 0], Q[1, 1] = q_offset, q_heading
+    for k in range(2, train.n + 1):
+        Q[k, k] = q_hitch
+    Q += 1e-9 * np.eye(size)
+    R = np.array([[r]])
+    P = solve_continuous_are(model.A, model.B, Q, R)
+    K = np.linalg.solve(R, model.B.T @ P)
+    return CurveGains(speed, psi0, K, model.point, np.linalg.eigvals(model.A - model.B @ K),
+                      steady_circle(train, psi0).R_A[0], radius)
+
+
+def curve_state(out, gains: CurveGains, centre) -> np.ndarray:
+    """x = (rho, eta, phi..., psi) of an Outputs sample about the circle of centre ``centre``."""
+    ax, ay = out.front[0][0] - centre[0], out.front[0][1] - centre[1]
+    alpha = math.atan2(ay, ax)
+    eta = out.heading[0] - alpha
+    eta = gains.point[1] + math.remainder(eta - gains.point[1], 2 * math.pi)
+    return np.array([math.hypot(ax, ay) - gains.R_A1, eta, *out.hitch_angle, out.steering])
+
+
+def reverse_curve(scene, gains: CurveGains, centre, distance: float, settle: float = 0.0) -> ReverseRun:
+    """Back the scene's train around the circle of ``centre`` until its last axle has travelled
+    ``distance`` m of arc; the error is the last axle's radial offset from ``gains.radius``."""
+    return drive(scene, gains, lambda out: curve_state(out, gains, centre),
+                 lambda before, after: math.hypot(after.axle[-1][0] - before.axle[-1][0],
+                                                  after.axle[-1][1] - before.axle[-1][1]),
+                 lambda out: math.hypot(out.axle[-1][0] - centre[0], out.axle[-1][1] - centre[1]) - gains.radius,
+                 distance, settle)

@@ -1,0 +1,93 @@
+"""numba where it can run, the same functions as plain Python where it cannot. No physics here.
+
+The kernels (``physics/kernel/``, ``integrate/rk.py``, ``run/whole.py``, ``run/offsets.py``) are
+written once, in the subset of Python that numba compiles. Two decorators give them their two lives:
+
+``jitable``  a function the kernels call from each other: plain Python when called from Python,
+             compiled into its caller when called from compiled code (numba's register_jitable).
+``entry``    a function Python calls: compiled and cached on disk (numba's njit(cache=True)); its
+             ``py_func`` is the same source run as plain Python, calling the plain-Python
+             ``jitable`` functions. So ``entry.py_func`` is a whole Python path, not a mix.
+
+Without numba, or with the environment variable ``MTA_SIM_NO_JIT=1`` set when the package is
+imported, both decorators leave the function as it is (``entry`` adds ``py_func``, itself).
+``ENABLED`` and ``NOTE`` say which holds.
+
+The compile unit. numba checks a cached function against the source file it is defined in, not
+against the files of the functions it calls (numba issue 8396): compiled code calling into another
+file would run stale after that file changed. So every file of compiled code is listed in ``UNIT``
+and the cache of every entry point is named after ``unit_digest()``, the digest of all of them: a
+change in any compiled file compiles every entry point anew. test_rooms.py holds ``UNIT`` to the
+files that use the decorators, and checks that compiled code reads names only from files of the
+unit (a constant read from another file would be frozen into the cache unseen).
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+from importlib import resources
+
+NO_JIT_ENV = "MTA_SIM_NO_JIT"
+
+#: every file whose functions numba compiles, relative to the package (and this file: the
+#: decorators' options are part of what is compiled)
+UNIT = (
+    "jit.py",
+    "physics/kernel/base.py",
+    "physics/kernel/laws.py",
+    "physics/kernel/motion.py",
+    "physics/kernel/entries.py",
+    "integrate/rk.py",
+    "run/whole.py",
+    "run/offsets.py",
+)
+
+
+@functools.cache
+def unit_digest() -> str:
+    """The first 12 hex digits of sha256 over the files of UNIT (names and contents); 'nosource'
+    where the sources cannot be read (then numba's own check of the defining file is all)."""
+    h = hashlib.sha256()
+    package = resources.files(__package__)
+    try:
+        for name in UNIT:
+            h.update(name.encode() + b"\0" + package.joinpath(name).read_bytes() + b"\0")
+    except OSError:
+        return "nosource"
+    return h.hexdigest()[:12]
+
+
+def _plain(f):
+    return f
+
+
+def _plain_entry(f):
+    f.py_func = f
+    return f
+
+
+def _disabled_by_env() -> bool:
+    return os.environ.get(NO_JIT_ENV, "").strip() not in ("", "0")
+
+
+try:
+    if _disabled_by_env():
+        raise ImportError(f"{NO_JIT_ENV}={os.environ[NO_JIT_ENV]}")
+    import numba
+    from numba.extending import register_jitable
+except (ImportError, OSError) as _err:  # OSError: llvmlite's shared library failed to load
+    ENABLED = False
+    NOTE = f"numba not used ({_err})"
+    jitable = _plain
+    entry = _plain_entry
+else:
+    ENABLED = True
+    NOTE = f"numba {numba.__version__}"
+    jitable = register_jitable
+
+    def entry(f):
+        """Compile ``f`` (lazily, on first call) and cache it on disk beside its source, in a cache
+        file named after the unit's digest (numba names it after the function's qualified name)."""
+        f.__qualname__ = f"{f.__qualname__}_unit_{unit_digest()}"
+        return numba.njit(cache=True)(f)

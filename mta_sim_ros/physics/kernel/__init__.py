@@ -1,0 +1,17 @@
+"""The train's kernel: the physics the simulator runs, written once, compiled by numba (or run as
+plain Python: ``jit.py``). One compile unit with ``integrate/rk.py`` (the stepper), ``run/whole.py``
+(a whole run in one call) and ``run/offsets.py`` (path distances).
+
+    base.py      the layout of the arrays (packed constants, state, records), law and branch codes
+    packing.py   the train's constants packed (plain Python)
+    laws.py      steering actuator, resistances, traction limits, switch layout
+    motion.py    rhs (chain walk + algorithm 2 + force laws), margin, outputs, drawbar pulls, switches
+    entries.py   what Python calls, compiled and cached
+
+The names below are this package's public face; the tests and the Python model levels use them.
+"""
+from .base import *  # noqa: F401,F403
+from .entries import *  # noqa: F401,F403
+from .laws import *  # noqa: F401,F403
+from .motion import *  # noqa: F401,F403
+from .packing import column, pack  # noqa: F401

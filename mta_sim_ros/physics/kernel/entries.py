@@ -1,0 +1,79 @@
+"""The train kernel's entry points: compiled and cached on disk (``jit.entry``), each with its
+plain-Python twin as ``.py_func``. Python calls these; they call ``motion`` and ``laws``."""
+from __future__ import annotations
+
+import numpy as np
+
+from ...jit import entry
+from .base import FORCE_SWITCHES, HIGH, LOW, NATURAL, OUT, REC, SCALARS, H, no_mode
+from .laws import actuator_release, branches
+from .motion import drawbar_pulls, margin, outputs, rhs, switches
+
+
+@entry
+def rhs_of(P, y, command, v_set):
+    """y' as a new array (dynamics.Model.rhs)."""
+    dy = np.empty(y.shape[0])
+    rhs(P, y, command, v_set, dy, np.empty((0, REC)), no_mode())
+    return dy
+
+
+@entry
+def held_rhs_of(P, y, command, v_set, mode):
+    """y' with the branches ``mode`` held (see ``rhs``, ``mode_of``)."""
+    dy = np.empty(y.shape[0])
+    rhs(P, y, command, v_set, dy, np.empty((0, REC)), mode)
+    return dy
+
+
+@entry
+def mode_of(P, y, command, v_set, rate_limited):
+    """The branches of every law at y: the actuator's (HIGH while ``rate_limited``), then each
+    switching function's (``branches``)."""
+    g = np.empty(FORCE_SWITCHES + int(P[H.n]) + 1)
+    mode = np.full(g.shape[0] + 1, NATURAL, dtype=np.int64)
+    branches(g, switches(P, y, command, v_set, g), mode)
+    mode[0] = HIGH if rate_limited else LOW
+    return mode
+
+
+@entry
+def outputs_of(P, y, command, v_set):
+    """(cart n x OUT, scalars SCALARS) of ``outputs``."""
+    n = int(P[H.n])
+    cart = np.empty((n, OUT))
+    sc = np.empty(SCALARS)
+    outputs(P, y, command, v_set, cart, sc, np.empty(y.shape[0]))
+    return cart, sc
+
+
+@entry
+def pulls_of(P, y, command, v_set):
+    """(cart n x OUT, scalars) of ``outputs`` with the drawbar pulls' column (``drawbar_pulls``)."""
+    n = int(P[H.n])
+    cart = np.empty((n, OUT))
+    sc = np.empty(SCALARS)
+    dy = np.empty(y.shape[0])
+    outputs(P, y, command, v_set, cart, sc, dy)
+    drawbar_pulls(P, y, dy[n + 3], cart)
+    return cart, sc
+
+
+@entry
+def margin_of(P, y):
+    """``margin``: (margin, cart index)."""
+    return margin(P, y)
+
+
+@entry
+def switches_of(P, y, command, v_set):
+    """The switching functions at y, as a new array."""
+    g = np.empty(FORCE_SWITCHES + int(P[H.n]) + 1)
+    m = switches(P, y, command, v_set, g)
+    return g[:m].copy()
+
+
+@entry
+def release_of(P, psi1, command):
+    """``actuator_release``."""
+    return actuator_release(P, psi1, command)

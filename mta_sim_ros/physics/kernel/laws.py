@@ -1,0 +1,154 @@
+"""The laws of the force and steering elements, compiled: the steering actuator (its rate, its
+release from the rate limit and its closed-form motion), the resistances at B_k (rolling and the
+ASABE draft), the traction limits, and which branch of each non-smooth law a state is on (the
+switching functions' layout; ``motion.switches`` evaluates them).
+
+Each law may be held on one branch (``mode``: NATURAL, LOW, HIGH, base.py): a step between two kinks
+integrates a smooth right-hand side, outside its own region the held branch's smooth extension."""
+from __future__ import annotations
+
+import math
+
+from ...jit import jitable
+from .base import (
+    CART_SIZE,
+    DRAFT_SIZE,
+    GOVERNOR,
+    HEAD_SIZE,
+    HIGH,
+    KINEMATIC,
+    LOW,
+    MS_TO_KMH,
+    NATURAL,
+    PRESCRIBED,
+    D,
+    H,
+    pymax,
+    pymin,
+)
+
+
+@jitable
+def steering_rate(P, psi1, command, branch):
+    """psi_1' = clip((clip(command, +-max_angle) - psi_1) / tau, +-max_rate) (actuator.py); with
+    ``branch`` HIGH the rate limit's side (+-max_rate), LOW the linear side, NATURAL as the state is."""
+    max_angle, max_rate = P[H.max_angle], P[H.max_rate]
+    target = pymin(pymax(command, -max_angle), max_angle)
+    if branch == NATURAL:
+        return pymin(pymax((target - psi1) / P[H.time_constant], -max_rate), max_rate)
+    if branch == HIGH:
+        return max_rate if target > psi1 else -max_rate
+    return (target - psi1) / P[H.time_constant]
+
+
+@jitable
+def held_abs(x, branch):
+    """|x|, or with a held branch the side of it (+x for HIGH, -x for LOW)."""
+    if branch == NATURAL:
+        return abs(x)
+    return x if branch == HIGH else -x
+
+
+@jitable
+def resistance_magnitude(P, rolling, first, count, axle_speed, branch):
+    """f m g plus the drafts D = F_i (A + B S + C S^2) W T at one axle, S = |speed| in km/h, summed
+    in the order of forces.CartResistance.force (``branch``: the sign of the speed, see held_abs)."""
+    total = rolling
+    base = HEAD_SIZE + CART_SIZE * int(P[H.n])
+    for i in range(first, first + count):
+        d = base + DRAFT_SIZE * i
+        S = held_abs(axle_speed, branch) * MS_TO_KMH
+        total += P[d + D.soil_factor] * (P[d + D.A] + P[d + D.B] * S + P[d + D.C] * S * S) * P[d + D.width] \
+            * P[d + D.depth]
+    return total
+
+
+@jitable
+def clip_held(x, limit, branch):
+    """x clipped to +-limit (Python's min(max(x, -limit), limit)); with a held branch, x itself (LOW)
+    or the limit on x's side (HIGH)."""
+    if branch == NATURAL:
+        return pymin(pymax(x, -limit), limit)
+    if branch == LOW:
+        return x
+    return limit if x > 0.0 else -limit
+
+
+@jitable
+def traction_limit(P, V, limit_branch, floor_branch):
+    """Largest |F_A1| at speed V: adhesion, and engine power over speed (forces.traction_limit),
+    min(max_force, max_power / max(|V|, 0.1)); held branches: the power limit (HIGH) or the force
+    limit (LOW) of the min, |V| (HIGH) or 0.1 (LOW) of the max."""
+    if math.isinf(P[H.max_power]):
+        return P[H.max_force]
+    if floor_branch == NATURAL:
+        speed = pymax(abs(V), 0.1)
+    else:
+        speed = abs(V) if floor_branch == HIGH else 0.1
+    if limit_branch == NATURAL:
+        return pymin(P[H.max_force], P[H.max_power] / speed)
+    return P[H.max_power] / speed if limit_branch == HIGH else P[H.max_force]
+
+
+@jitable
+def switch_layout(P):
+    """Where each switching function sits in ``switches``'s list (-1: not in this model):
+    (governor saturation, governor force/power limit, governor speed floor, prescribed-speed
+    acceleration limit, first draft speed sign)."""
+    law = int(P[H.law])
+    m = 0
+    i_sat = i_limit = i_floor = i_accel = i_speed = -1
+    if law == GOVERNOR:
+        force_finite, power_finite = not math.isinf(P[H.max_force]), not math.isinf(P[H.max_power])
+        if force_finite or power_finite:
+            i_sat, m = m, m + 1
+        if power_finite:
+            if force_finite:
+                i_limit, m = m, m + 1
+            i_floor, m = m, m + 1
+    elif law == PRESCRIBED and not math.isinf(P[H.max_accel]):
+        i_accel, m = m, m + 1
+    if P[H.speed_switches] != 0.0 and law != KINEMATIC:
+        i_speed = m
+    return i_sat, i_limit, i_floor, i_accel, i_speed
+
+
+@jitable
+def branches(g, m, mode):
+    """mode[1 + j] = the branch switching function j is on (HIGH where g_j > 0, else LOW)."""
+    for j in range(m):
+        mode[1 + j] = HIGH if g[j] > 0.0 else LOW
+
+
+@jitable
+def actuator_release(P, psi1, command):
+    """Time (s) until the steering actuator leaves its rate limit, with the command held: inf when
+    it is not rate-limited. While limited, psi_1 moves at +-max_rate exactly (a straight line), and
+    the limit lets go where |target - psi_1| = tau max_rate."""
+    max_angle, max_rate, tau = P[H.max_angle], P[H.max_rate], P[H.time_constant]
+    target = pymin(pymax(command, -max_angle), max_angle)
+    gap = abs(target - psi1)
+    if not gap / tau > max_rate:
+        return math.inf
+    return (gap - tau * max_rate) / max_rate
+
+
+@jitable
+def actuator_psi(P, psi0, command, release, T):
+    """psi_1 at T s into a tick that started at psi0, the command held: the actuator's closed-form
+    motion (rate-limited at +-max_rate until ``release``, ``actuator_release``; then the first-order
+    lag, exp(-t / tau) towards the clipped command)."""
+    max_angle, max_rate, tau = P[H.max_angle], P[H.max_rate], P[H.time_constant]
+    target = pymin(pymax(command, -max_angle), max_angle)
+    if math.isinf(release):
+        return target + (psi0 - target) * math.exp(-T / tau)
+    sign = 1.0 if target > psi0 else -1.0
+    if T <= release:
+        return psi0 + sign * max_rate * T
+    return target - sign * tau * max_rate * math.exp(-(T - release) / tau)
+
+
+@jitable
+def no_switches(P, y, command, v_set, g):
+    """``switches`` for a right-hand side without known switches."""
+    return 0

@@ -1,0 +1,304 @@
+"""The train's equations, compiled: the right-hand side (the chain walk of MODEL.md [12]-[16] fused
+with algorithm 2's sums and the force laws), the jackknife margin, every reported quantity of a state,
+the drawbar pulls, and the switching functions of the force laws.
+
+The readable reference the tests hold these to: ``physics/chain.py`` (the recursion),
+``dynamics.Model.terms`` (algorithm 2 term by term) and ``holonomic.py`` (algorithm 1). Arithmetic
+here is the reference's, in the same order (IEEE, no fast-math), so the kernel's y' equals the
+reference's to the last bit."""
+from __future__ import annotations
+
+import math
+
+from ...jit import jitable
+from .base import (
+    AX,
+    AY,
+    BX,
+    BY,
+    CART_SIZE,
+    CX,
+    CY,
+    GOVERNOR,
+    HEAD_SIZE,
+    KAPB,
+    KAPB_DOT,
+    KAPC,
+    KAPT,
+    KAPT_DOT,
+    KINEMATIC,
+    MARGIN,
+    MASS,
+    NATURAL,
+    PHI,
+    PRESCRIBED,
+    PSI,
+    PULL,
+    REAR_X,
+    REAR_Y,
+    RES,
+    RES_POWER,
+    TRACTION,
+    VB,
+    VC,
+    VT,
+    C,
+    H,
+    no_mode,
+    pymax,
+    wrap_angle,
+)
+from .laws import clip_held, resistance_magnitude, steering_rate, switch_layout, traction_limit
+
+
+@jitable
+def rhs(P, y, command, v_set, dy, rec, mode):
+    """y' into ``dy``; returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's
+    kapT, kapB, kapC, psi and resistance F_Bk go into its first REC columns. ``mode`` (empty, or
+    one branch per switch: ``branches``) holds each non-smooth law on one of its branches, as a
+    step between two kinks needs (outside its own region a held branch is the smooth extension).
+
+    The chain (chain.py): walking back from the tractor, V_k = kap_k V and psi_k give
+    th'_k = kap_k sin(psi_k) V / l_k, s'_Bk = kap_k cos(psi_k) V, s'_Ck = kap_k rc_k V; each rate
+    ``*_dot`` is the exact time derivative of the line above it. Algorithm 2 (dynamics.py):
+    M = sum m kapC^2 + J kapT^2, R = 1/2 M' V, M V' = F_A1 - sum F_Bk kapB_k - R."""
+    n = int(P[H.n])
+    law = int(P[H.law])
+    forces_on = law != KINEMATIC
+    held = mode.shape[0] > 0
+    i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P)
+    psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
+    psi_rate = steering_rate(P, psi1, command, mode[0] if held else NATURAL)
+    v0 = P[H.smoothing_speed]
+
+    mass = 0.0
+    mass_rate = 0.0
+    generalized_resistance = 0.0
+    k_val, k_dot = 1.0, 0.0  # kap_1 = 1
+    p_val, p_dot = psi1, psi_rate
+    theta_rate_prev = 0.0
+    beta_dot_prev = 0.0
+    last = n - 1
+    for k in range(n):
+        b = HEAD_SIZE + CART_SIZE * k
+        l_k = P[b + C.length]
+        s, c = math.sin(p_val), math.cos(p_val)
+        t_val = k_val * s / l_k  # kapT_k
+        theta_rate = t_val * V
+        if k:  # psi_k = th_{k-1} - th_k - beta_{k-1}
+            p_dot = theta_rate_prev - theta_rate - beta_dot_prev
+        s_dot, c_dot = c * p_dot, -s * p_dot
+        b_val = k_val * c  # kapB_k
+        cc = c * c
+        if forces_on:
+            mu2 = P[b + C.mu2]
+            t_dot = (k_dot * s + k_val * s_dot) / l_k
+            rc = math.sqrt(cc + mu2 * s * s)  # s'_Ck / V_k; (mu2 * s) * s rounds as chain's mu * mu * s * s
+            rc_dot = (c * c_dot + mu2 * s * s_dot) / rc
+            kc_val = k_val * rc  # kapC_k
+            kc_dot = k_dot * rc + k_val * rc_dot
+            m, J = P[b + C.mass], P[b + C.inertia]
+            mass += m * kc_val * kc_val + J * t_val * t_val
+            mass_rate += 2.0 * (m * kc_val * kc_dot + J * t_val * t_dot)
+            axle_speed = b_val * V
+            count = int(P[b + C.draft_count])
+            branch = NATURAL
+            if held and i_speed >= 0 and count > 0:
+                branch = mode[1 + i_speed]
+                i_speed += 1
+            magnitude = resistance_magnitude(P, P[b + C.rolling], int(P[b + C.draft_first]), count, axle_speed,
+                                             branch)
+            resistance = magnitude * math.tanh(axle_speed / v0)
+            generalized_resistance += resistance * b_val
+            if rec.shape[0]:
+                rec[k, KAPC], rec[k, RES] = kc_val, resistance
+                rec[k, KAPT_DOT], rec[k, KAPB_DOT] = t_dot, k_dot * c + k_val * c_dot
+        if rec.shape[0]:
+            rec[k, KAPT], rec[k, KAPB], rec[k, PSI] = t_val, b_val, p_val
+        dy[2 + k] = theta_rate
+        if k < last:  # on to cart k + 1: V_{k+1} = V_k rl_k, psi_{k+1} = th_k - th_{k+1} - beta_k
+            lam, lam2 = P[b + C.lam], P[b + C.lam2]
+            rl2 = cc + lam2 * s * s
+            rl = math.sqrt(rl2)
+            rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
+            beta = math.atan2(lam * s, c)
+            beta_dot_prev = lam * p_dot / rl2  # d/dt atan2(lam s, c)
+            k_val, k_dot = k_val * rl, k_dot * rl + k_val * rl_dot
+            p_val = y[2 + k] - y[3 + k] - beta
+            theta_rate_prev = theta_rate
+
+    traction = 0.0
+    governor_rate = 0.0
+    if law == KINEMATIC:
+        acceleration = z  # the ramp slope of this tick (kinematic.py)
+    else:
+        velocity_term = 0.5 * mass_rate * V
+        if law == PRESCRIBED:  # forces.prescribed_acceleration, then inverse dynamics
+            a = (v_set - V) / P[H.response_time]
+            acceleration = clip_held(a, P[H.max_accel], mode[1 + i_accel] if held and i_accel >= 0 else NATURAL)
+            traction = mass * acceleration + generalized_resistance + velocity_term
+        else:
+            if law == GOVERNOR:  # forces.governor
+                error = v_set - V
+                u = P[H.kp] * error + z
+                limit = traction_limit(P, V, mode[1 + i_limit] if held and i_limit >= 0 else NATURAL,
+                                       mode[1 + i_floor] if held and i_floor >= 0 else NATURAL)
+                traction = clip_held(u, limit, mode[1 + i_sat] if held and i_sat >= 0 else NATURAL)
+                governor_rate = P[H.ki] * error + (traction - u) / P[H.windup_time]
+            else:
+                traction = P[H.force]
+            acceleration = (traction - generalized_resistance - velocity_term) / mass
+    course = y[2] + psi1  # direction of v_A1
+    dy[0] = V * math.cos(course)
+    dy[1] = V * math.sin(course)
+    dy[n + 2] = psi_rate
+    dy[n + 3] = acceleration
+    dy[n + 4] = governor_rate
+    return traction, mass
+
+
+@jitable
+def margin(P, y):
+    """(smallest jackknife margin over the hitches, rad; index of that cart, -1 for none): per
+    cart k >= 2, min(max_hitch_k - |phi_k|, pi/2 - |psi_k|) with psi_k from the chain (guards.py)."""
+    n = int(P[H.n])
+    best, where = math.inf, -1
+    p_val = y[n + 2]
+    for k in range(n - 1):
+        b = HEAD_SIZE + CART_SIZE * k
+        lam = P[b + C.lam]
+        beta = math.atan2(lam * math.sin(p_val), math.cos(p_val))
+        p_val = y[2 + k] - y[3 + k] - beta  # psi_{k+1}
+        phi = wrap_angle(y[2 + k] - y[3 + k])
+        m = min(P[b + CART_SIZE + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(p_val))
+        if m < best:
+            best, where = m, k + 1
+    return best, where
+
+
+#: closer than this to a jackknife limit (rad), the Python guard (guards.check_state) decides
+GUARD_SLACK = 1e-9
+
+
+@jitable
+def clear(P, y):
+    """True when y is finite and every hitch is more than GUARD_SLACK inside its limits."""
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return margin(P, y)[0] > GUARD_SLACK
+
+
+@jitable
+def outputs(P, y, command, v_set, cart, sc, dy):
+    """Every reported quantity of state y into ``cart`` (n x OUT) and ``sc`` (SCALARS): the points
+    of geometry.cart_points, the chain's factors times V, the forces, and the jackknife margin."""
+    n = int(P[H.n])
+    traction, mass = rhs(P, y, command, v_set, dy, cart, no_mode())
+    V = y[n + 3]
+    ax, ay = y[0], y[1]
+    res_power = 0.0
+    best = math.inf
+    for k in range(n):
+        b = HEAD_SIZE + CART_SIZE * k
+        th = y[2 + k]
+        ex, ey = math.cos(th), math.sin(th)
+        cart[k, AX], cart[k, AY] = ax, ay
+        bx, by = ax - P[b + C.length] * ex, ay - P[b + C.length] * ey
+        cart[k, BX], cart[k, BY] = bx, by
+        cart[k, CX], cart[k, CY] = bx + P[b + C.com_offset] * ex, by + P[b + C.com_offset] * ey
+        ax, ay = bx - P[b + C.hitch_offset] * ex, by - P[b + C.hitch_offset] * ey
+        cart[k, VC], cart[k, VB], cart[k, VT] = cart[k, KAPC] * V, cart[k, KAPB] * V, cart[k, KAPT] * V
+        cart[k, PULL] = math.nan  # not computed here (drawbar_pulls)
+        res_power += cart[k, RES] * cart[k, VB]
+        if k:
+            phi = wrap_angle(y[1 + k] - th)
+            cart[k, PHI] = phi
+            m = min(P[b + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(cart[k, PSI]))
+            if m < best:
+                best = m
+        else:
+            cart[k, PHI] = 0.0
+    sc[REAR_X], sc[REAR_Y] = ax, ay
+    sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
+    return traction
+
+
+@jitable
+def drawbar_pulls(P, y, acceleration, cart):
+    """The pull at each hitch A_k (k >= 2) along the towed cart's axis e_k, N, into cart[k, PULL]:
+    the constraint force of the model, by Newton-Euler on each towed cart from the last forward.
+    Cart k (unit axis e_k, normal n_k, th_k) carries the hitch force H_k at A_k, -H_{k+1} at A_{k+1},
+    the resistance -F_Bk e_k and the tyres' lateral force N_k n_k at B_k. With the centre of mass
+    C_k = B_k + c_k e_k, its acceleration a_e = d(s'_Bk)/dt - c_k th'_k^2, a_n = s'_Bk th'_k + c_k th''_k,
+    where d(s'_Bk)/dt = kapB' V + kapB V' and th''_k = kapT' V + kapT V' (the chain's rates, ``rhs``):
+
+        H_k . e_k = H_{k+1} . e_k + F_Bk + m_k a_e                          (Newton along e_k)
+        H_k . n_k = (J_k th''_k + c_k m_k a_n - a_k H_{k+1} . n_k) / l_k   (Euler about C_k, N_k eliminated)
+
+    ``cart`` holds the REC and VB, VT columns of ``outputs`` (``acceleration`` its dy[n + 3]); cart[0, PULL] is 0 (the traction
+    at A_1 is ``outputs``' own). On a straight line at constant speed the pull at A_k is the sum of
+    the resistances behind it (test_sweep_metrics)."""
+    n = int(P[H.n])
+    V = y[n + 3]
+    hx, hy = 0.0, 0.0  # H_{k+1}, world frame
+    for k in range(n - 1, 0, -1):
+        b = HEAD_SIZE + CART_SIZE * k
+        th = y[2 + k]
+        ex, ey = math.cos(th), math.sin(th)
+        nx, ny = -ey, ex
+        com = P[b + C.com_offset]
+        m = P[b + C.mass]
+        rate = cart[k, VT]
+        rate_dot = cart[k, KAPT_DOT] * V + cart[k, KAPT] * acceleration
+        speed_dot = cart[k, KAPB_DOT] * V + cart[k, KAPB] * acceleration
+        a_e = speed_dot - com * rate * rate
+        a_n = cart[k, VB] * rate + com * rate_dot
+        h_e = hx * ex + hy * ey + cart[k, RES] + m * a_e
+        h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * (hx * nx + hy * ny)) / P[b + C.length]
+        cart[k, PULL] = h_e
+        hx, hy = h_e * ex + h_n * nx, h_e * ey + h_n * ny
+    cart[0, PULL] = 0.0
+
+
+@jitable
+def switches(P, y, command, v_set, g):
+    """The force laws' switching functions at y into g; returns how many. Each is continuous and
+    changes sign exactly where a law changes branch (a kink of y'):
+        governor          |u| - limit(V) (the force limit engages), max_force max(|V|, 0.1) - max_power
+                          (the power limit is below the adhesion limit), |V| - 0.1 (the power
+                          limit's speed floor)
+        prescribed speed  |v_set - V| / response_time - max_accel (the acceleration limit)
+        drafts with B     s'_Bk of each cart with drafts (|S| has a corner at 0)
+    The actuator's rate limit is handled in closed form (``actuator_release``)."""
+    n = int(P[H.n])
+    V, z = y[n + 3], y[n + 4]
+    i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P)
+    if i_sat >= 0:
+        g[i_sat] = abs(P[H.kp] * (v_set - V) + z) - traction_limit(P, V, NATURAL, NATURAL)
+    if i_limit >= 0:
+        g[i_limit] = P[H.max_force] * pymax(abs(V), 0.1) - P[H.max_power]
+    if i_floor >= 0:
+        g[i_floor] = abs(V) - 0.1
+    if i_accel >= 0:
+        g[i_accel] = abs(v_set - V) / P[H.response_time] - P[H.max_accel]
+    m = max(i_sat, i_limit, i_floor, i_accel) + 1
+    if i_speed >= 0:
+        k_val = 1.0
+        p_val = y[n + 2]
+        for k in range(n):
+            b = HEAD_SIZE + CART_SIZE * k
+            s, c = math.sin(p_val), math.cos(p_val)
+            if P[b + C.draft_count] > 0:
+                g[m] = k_val * c * V  # s'_Bk
+                m += 1
+            if k < n - 1:
+                k_val = k_val * math.sqrt(c * c + P[b + C.lam2] * s * s)
+                p_val = y[2 + k] - y[3 + k] - math.atan2(P[b + C.lam] * s, c)
+    return m
+
+
+@jitable
+def model_rhs(P, t, y, command, v_set, dy, rec, mode):
+    """The stepping routine's form of ``rhs`` (t does not enter: the input is held)."""
+    rhs(P, y, command, v_set, dy, rec, mode)

@@ -1,0 +1,34 @@
+"""The train's constants as the kernels read them: one float64 array (``pack``), and a column of
+it back (``column``). Plain Python, not compiled: the fields are declared in ``base.py``."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from .. import forces
+from .base import CART, CART_SIZE, DRAFT, HEAD, HEAD_SIZE, LAWS, C, H
+
+
+def pack(train, law: str | None = None, traction=None) -> np.ndarray:
+    """The constants of ``train`` as one float64 array: HEAD, then CART per cart, then DRAFT per
+    draft (grouped by cart). ``law`` / ``traction`` override the train's traction law (the
+    kinematic level packs law 'kinematic' and, for its inverse dynamics, 'prescribed_speed')."""
+    traction = traction or train.traction
+    law = law or traction.law
+    if law not in LAWS:
+        raise ValueError(f"traction law {law!r} has no kernel (one of {', '.join(LAWS)})")
+    values = HEAD.values(SimpleNamespace(train=train, law=law, traction=traction))
+    drafts = []
+    for k, (cart, resistance) in enumerate(zip(train.carts, forces.cart_resistances(train))):
+        values += CART.values(SimpleNamespace(cart=cart, resistance=resistance, draft_first=len(drafts)))
+        drafts += resistance.drafts
+    for d in drafts:
+        values += DRAFT.values(d)
+    return np.array(values, dtype=np.float64)
+
+
+def column(P: np.ndarray, name: str) -> tuple[float, ...]:
+    """One CART field of every cart, read from the packed array (for the reference code)."""
+    n, i = int(P[H.n]), getattr(C, name)
+    return tuple(float(P[HEAD_SIZE + CART_SIZE * k + i]) for k in range(n))
