@@ -55,7 +55,9 @@ class BareStepper:
         from mta_sim_ros.physics.guards import check_state
 
         t0, t1 = self.ticks * self.case.tick, (self.ticks + 1) * self.case.tick
-        y, clear = self.stepper.tick(self.case.model.P, self.y, t0, t1, command, v_set, self.compiled)
+        model = self.case.model
+        y, clear = self.stepper.tick(model.P, self.y, t0, t1, command, v_set, model.train.actuator.max_rate,
+                                     self.compiled)
         if not clear:
             check_state(self.case.model, t1, y)
         self.y, self.ticks = y, self.ticks + 1

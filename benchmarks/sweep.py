@@ -70,6 +70,7 @@ def one_run(scene, rounds: int, figures: dict) -> list[str]:
 
     sim = Simulation(scene, fidelity="dynamic")
     commands, v_sets = batch.scheduled_inputs(scene, sim)
+    max_rates = np.full(commands.shape[0], sim.max_rate)
     trace = np.empty((commands.shape[0] + 1, whole.TRACE_HEAD + whole.TRACE_CART * scene.train.n))
     st = sim.stepper
 
@@ -84,7 +85,8 @@ def one_run(scene, rounds: int, figures: dict) -> list[str]:
             scene, fidelity="dynamic"),
         "  its set-up: Simulation(scene, fidelity=dynamic)": lambda: Simulation(scene, fidelity="dynamic"),
         "  its kernel call: whole.run over 3500 ticks": lambda: whole.run(
-            sim.model.P, sim.model.P, st.tableau.packed, sim.y, commands, v_sets, sim.tick, st.step, True, 0, trace),
+            sim.model.P, sim.model.P, st.tableau.packed, sim.y, commands, v_sets, max_rates, sim.tick, st.step, True,
+            0, trace),
         "  its metrics: batch.metrics of the trace": None,
         "batch.run_metrics, dynamic, rk4 at the tick (0.02 s)": lambda: batch.run_metrics(
             scene, fidelity="dynamic", step=0.02),

@@ -3,7 +3,7 @@ in one process, offline, calls back to back, on a state of the scene after 3 s o
 the five output messages built as plain dicts (``topics.output_messages``) and encoded by the
 generic serializer (``bag.cdr.encode``) against ``messages.OutputEncoder.encode`` (CDR templates;
 the same bytes); the MarkerArray likewise (``messages.train_markers`` encoded against
-``TrainMarkers.encode``); ``sim.evaluate_outputs`` (the kernel as plain Python) against
+``TrainMarkers.encode``); the level's ``outputs`` with the kernel as plain Python against
 ``Simulation.outputs`` on the compiled path (the tick's form second). The variants alternate within
 each round, so both see the same machine; printed: the median over rounds of the mean time per
 call, and the ratio. No file is written.
@@ -31,7 +31,7 @@ def main(args) -> int:
     from mta_sim_ros.messages import MARKERS_TYPE, OutputEncoder, TrainMarkers, train_markers
     from mta_sim_ros.messages.topics import TOPICS, output_messages
     from mta_sim_ros.physics.loader import load_scene
-    from mta_sim_ros.run.simulation import Simulation, evaluate_outputs
+    from mta_sim_ros.run.simulation import Simulation
 
     scene = load_scene(resolve_scene(args.scene))
     sim = Simulation(scene, fidelity="dynamic")
@@ -45,7 +45,7 @@ def main(args) -> int:
                                  lambda: encoder.encode(out)),
         "markers (MarkerArray)": (lambda: encode(MARKERS_TYPE, train_markers(out, scene.train)),
                                   lambda: markers.encode(out)),
-        "outputs": (lambda: evaluate_outputs(sim.model, sim.t, sim.y, sim.command, sim.v_set), sim.outputs),
+        "outputs": (lambda: sim.model.outputs(sim.t, sim.y, sim.command, sim.v_set, compiled=False), sim.outputs),
     }
     print(f"benchmarks tick-parts: scene '{scene.name}', {len(names)} carts, outputs path: {sim.compiled_note}; "
           f"{args.rounds} rounds x {args.calls} calls per variant")

@@ -37,8 +37,8 @@ def kernel_point(train, y, command):
     """(values of the state symbols and forces, the kernel's V') at a state: F_A1 and F_Bk as the
     kernel's outputs give them, psi_1' its right-hand side's."""
     P = kernel.pack(train)
-    dy = kernel.rhs_of(P, y, command, 3.0)
-    cart, sc = kernel.outputs_of(P, y, command, 3.0)
+    dy = kernel.rhs_of(P, y, command, 3.0, kernel.max_rate_of(P))
+    cart, sc = kernel.outputs_of(P, y, command, 3.0, kernel.max_rate_of(P))
     n = train.n
     values = {f"theta_{k + 1}": y[2 + k] for k in range(n)}
     values.update({"psi_1": y[n + 2], "V": y[n + 3], "dpsi_1": dy[n + 2], "F_A1": sc[kernel.TRACTION]})
@@ -87,7 +87,7 @@ def test_the_printed_acceleration_parsed_back_is_the_kernels(name, capsys):
     P = kernel.pack(train)
     y, command = random_state(rng, train)
     values, _ = kernel_point(train, y, command)
-    cart, _ = kernel.outputs_of(P, y, command, 3.0)
+    cart, _ = kernel.outputs_of(P, y, command, 3.0, kernel.max_rate_of(P))
     for k in range(train.n):
         for key, column in (("kapC", kernel.KAPC), ("kapT", kernel.KAPT), ("kapB", kernel.KAPB)):
             [entry] = [l for l in text.splitlines() if l.startswith(f"{key}_{k + 1} = ")]
@@ -104,7 +104,7 @@ def test_the_recursion_printed_is_the_chain():
     rng = np.random.default_rng(11)
     y, command = random_state(rng, train)
     P = kernel.pack(train)
-    cart, _ = kernel.outputs_of(P, y, command, 3.0)
+    cart, _ = kernel.outputs_of(P, y, command, 3.0, kernel.max_rate_of(P))
     psi, V = y[5], y[6]
     sym = {str(s): s for e in rec.values() for s in e.free_symbols}
     for k in range(1, train.n):

@@ -178,7 +178,7 @@ def test_the_kernel_state_derivative_equals_kanes_equations(n):
         planted = accel((*geometry, *inertia[:n], inertia[n] * (1 + 1e-6), *inertia[n + 1:],
                          train.traction.force, *forces), state, rate)
         assert abs(planted - expected) > 1e-10 * max(abs(expected), 1e-3) or abs(math.sin(psi1)) < 0.05
-        dy = kernel.rhs_of(P, y, command, 0.0)
+        dy = kernel.rhs_of(P, y, command, 0.0, kernel.max_rate_of(P))
         assert dy[n + 2] == pytest.approx(rate, rel=1e-15, abs=1e-15)
         assert abs(deps[0]) < 1e-9 * max(1.0, abs(V))  # the steered wheels do not slip
         np.testing.assert_allclose(dy[2:2 + n], deps[1:], rtol=1e-11, atol=1e-12)  # yaw rates

@@ -31,7 +31,7 @@ from mta_sim_ros.physics.dynamics import Model
 from mta_sim_ros.physics.guards import ModelValidityError, jackknife_margin
 from mta_sim_ros.physics.kinematic import KinematicModel
 from mta_sim_ros.physics.loader import load_scene
-from mta_sim_ros.physics.outputs import evaluate, reference_outputs
+from mta_sim_ros.physics.outputs import reference_outputs
 from mta_sim_ros.physics.spec import Draft
 from mta_sim_ros.run.simulation import NO_JIT_ENV, Simulation, run_scene
 
@@ -81,7 +81,25 @@ def test_kernel_rhs_equals_the_reference_path_bit_for_bit(n, law):
         fast = model.rhs(0.0, y, command, v_set)
         assert fast.dtype == reference.dtype and fast.shape == reference.shape
         np.testing.assert_array_equal(fast, reference)
-        np.testing.assert_array_equal(kernel.rhs_of.py_func(model.P, y, command, v_set), reference)
+        np.testing.assert_array_equal(kernel.rhs_of.py_func(model.P, y, command, v_set, kernel.max_rate_of(model.P)),
+                                      reference)
+
+
+@pytest.mark.parametrize("law", list(LAWS))
+def test_a_rate_limit_held_as_an_input_is_the_reference_with_that_limit(law):
+    """The steering rate limit is an input beside the state (ackermann_cmd's steering_angle_velocity):
+    the kernel under a held limit equals the reference path under it, the actuator's rate is
+    clipped to it, and the model's constants are not touched."""
+    model = Model(train(3, LAWS[law]))
+    packed = model.P.copy()
+    for (y, command, v_set), rate in zip(states(model, 11 + len(law)), np.geomspace(1e-3, 5.0, 20)):
+        reference, terms = model.derivative(y, command, v_set, rate)
+        np.testing.assert_array_equal(model.rhs(0.0, y, command, v_set, rate), reference)
+        act = model.train.actuator  # the actuator law of MODEL.md with the held limit in place of max_rate
+        target = min(max(command, -act.max_angle), act.max_angle)
+        assert terms.steering_rate == min(max((target - y[model.layout.steering]) / act.time_constant, -rate), rate)
+    np.testing.assert_array_equal(model.P, packed)
+    np.testing.assert_array_equal(model.P, kernel.pack(model.train))
 
 
 @pytest.mark.parametrize("n", [1, 3, 5])
@@ -120,7 +138,7 @@ def test_kernel_outputs_equal_the_reference_outputs(n, law):
     for y, command, v_set in states(model, 7 * n + len(law)):
         t = rng.uniform(0, 100)
         ref = reference_outputs(model, t, y, command, v_set)
-        got = evaluate(model, t, y, command, v_set)
+        got = model.outputs(t, y, command, v_set)
         assert got.resistance_power == pytest.approx(ref.resistance_power, rel=1e-13, abs=1e-9)
         got.resistance_power = ref.resistance_power
         assert_outputs_equal(got, ref)
@@ -132,7 +150,7 @@ def test_kinematic_outputs_are_its_inverse_dynamics():
     model = KinematicModel(train(3, trains.GOVERNOR))
     for y, command, v_set in states(model, 3):
         ref = reference_outputs(model, 1.0, y, command, v_set)
-        got = evaluate(model, 1.0, y, command, v_set)
+        got = model.outputs(1.0, y, command, v_set)
         got.resistance_power = pytest.approx(ref.resistance_power, rel=1e-13)
         assert got.traction == ref.traction and got.kinetic_energy == ref.kinetic_energy
 
@@ -167,7 +185,7 @@ def test_compiled_tick_equals_plain_python(method, n, split):
     for y, command, v_set in states(model, n, count=10):
         y[model.layout.speed] = abs(y[model.layout.speed]) + 0.5
         for step in (0.01, 0.004, 0.0031):  # 1, 3 and 4 steps per 10 ms tick
-            args = (model.P, T, y, command, v_set, 3.0, 3.01, step, split)
+            args = (model.P, T, y, command, v_set, kernel.max_rate_of(model.P), 3.0, 3.01, step, split)
             a, b = rk.tick(*args), rk.tick.py_func(*args)
             np.testing.assert_array_equal(a[0], b[0])
             assert a[1:] == b[1:]
@@ -177,13 +195,16 @@ def test_compiled_tick_equals_plain_python(method, n, split):
 @pytest.mark.parametrize("n", [1, 2, 5, 20])
 def test_compiled_outputs_and_guards_equal_plain_python(n):
     model = Model(train(n, trains.GOVERNOR))
+    rate = kernel.max_rate_of(model.P)
     for y, command, v_set in states(model, n):
-        for a, b in zip(kernel.outputs_of(model.P, y, command, v_set), kernel.outputs_of.py_func(model.P, y, command, v_set)):
+        for a, b in zip(kernel.outputs_of(model.P, y, command, v_set, rate),
+                        kernel.outputs_of.py_func(model.P, y, command, v_set, rate)):
             np.testing.assert_array_equal(a, b)
         assert kernel.margin_of(model.P, y) == kernel.margin_of.py_func(model.P, y)
         np.testing.assert_array_equal(kernel.switches_of(model.P, y, command, v_set),
                                       kernel.switches_of.py_func(model.P, y, command, v_set))
-        assert kernel.release_of(model.P, y[n + 2], command) == kernel.release_of.py_func(model.P, y[n + 2], command)
+        assert kernel.release_of(model.P, y[n + 2], command, rate) == kernel.release_of.py_func(model.P, y[n + 2],
+                                                                                                 command, rate)
 
 
 @needs_numba

@@ -2,8 +2,8 @@
 model/kernel.py ``advance``), and each method keeps its order.
 
 - The actuator's release time in closed form is where the actuator law (actuator.py) leaves its
-  rate limit; each switching function changes sign exactly where its force law (forces.py)
-  changes branch; a held branch equals the law where the law is on it.
+  rate limit; each switching function changes sign exactly where its force law (test/laws.py:
+  the laws as docs/model.md states them) changes branch; a held branch equals the law where the law is on it.
 - On kinks.yaml (a light tractor, a heavy cart, steering steps whose rate limit lets go inside a
   step, speed steps that drive the governor through its force and power limits), against a DOP853
   reference at rtol = atol = 1e-12 that also splits: every fixed method's error falls with its
@@ -19,11 +19,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import laws
 import trains
 
 from mta_sim_ros.integrate.tableau import TABLEAUX
-from mta_sim_ros.physics import forces, kernel
-from mta_sim_ros.physics.actuator import steering_rate
+from laws import steering_rate
+
+from mta_sim_ros.physics import kernel
 from mta_sim_ros.physics.dynamics import Model
 from mta_sim_ros.physics.loader import load_scene
 from mta_sim_ros.run.simulation import Simulation
@@ -72,7 +74,7 @@ def test_actuator_release_is_where_the_rate_limit_lets_go():
     rng = np.random.default_rng(0)
     for _ in range(200):
         psi0, command = rng.uniform(-0.8, 0.8, 2)
-        t = kernel.release_of.py_func(P, psi0, command)
+        t = kernel.release_of.py_func(P, psi0, command, act.max_rate)
         target = min(max(command, -act.max_angle), act.max_angle)
         if not math.isfinite(t):  # never limited: the law is linear from the start
             assert abs(steering_rate(act, psi0, command)) <= act.max_rate
@@ -102,16 +104,16 @@ def test_switching_functions_change_sign_where_the_law_changes_branch(law):
         g = kernel.switches_of.py_func(model.P, y, 0.1, v_set)
         V, z = y[model.layout.speed], y[model.layout.governor]
         if tr.traction.law == "governor":
-            force, _ = forces.governor(tr.traction, V, v_set, z)
+            force, _ = laws.governor(tr.traction, V, v_set, z)
             u = tr.traction.kp * (v_set - V) + z
             assert (g[i_sat] > 0) == (force != u)  # saturated: the force is the limit, not u
-            limit = forces.traction_limit(tr.traction, V)
+            limit = laws.traction_limit(tr.traction, V)
             if i_limit >= 0:
                 assert (g[i_limit] > 0) == (limit < tr.traction.max_force)
             if i_floor >= 0:
                 assert (g[i_floor] > 0) == (abs(V) > 0.1)
         else:
-            a = forces.prescribed_acceleration(tr.traction, V, v_set)
+            a = laws.prescribed_acceleration(tr.traction, V, v_set)
             assert (g[i_accel] > 0) == (a != (v_set - V) / tr.traction.response_time)
         # the draft grows with speed (B != 0): the sign of each such cart's axle speed is a switch
         speeds = model.terms(y, 0.1, v_set).chain.kapB
@@ -129,8 +131,9 @@ def test_held_branches_are_the_law_where_it_is_on_them(law):
         command, v_set = rng.uniform(-0.8, 0.8), rng.uniform(-1, 5)
         limited = abs(steering_rate(model.train.actuator, y[model.layout.steering], command)) == model.train.actuator.max_rate
         mode = kernel.mode_of.py_func(model.P, y, command, v_set, limited)
-        np.testing.assert_array_equal(kernel.held_rhs_of.py_func(model.P, y, command, v_set, mode),
-                                      kernel.rhs_of.py_func(model.P, y, command, v_set))
+        rate = model.train.actuator.max_rate
+        np.testing.assert_array_equal(kernel.held_rhs_of.py_func(model.P, y, command, v_set, rate, mode),
+                                      kernel.rhs_of.py_func(model.P, y, command, v_set, rate))
 
 
 def test_a_held_governor_branch_is_the_smooth_extension():
@@ -143,9 +146,11 @@ def test_a_held_governor_branch_is_the_smooth_extension():
     i_sat = kernel.switch_layout(model.P)[0]
     assert mode[1 + i_sat] == kernel.LOW
     mode[1 + i_sat] = kernel.HIGH  # held saturated: F_A1 = +limit although u is far below it
-    held, natural = (kernel.held_rhs_of.py_func(model.P, y, 0.0, 3.0, mode), kernel.rhs_of.py_func(model.P, y, 0.0, 3.0))
+    rate = tr.actuator.max_rate
+    held = kernel.held_rhs_of.py_func(model.P, y, 0.0, 3.0, rate, mode)
+    natural = kernel.rhs_of.py_func(model.P, y, 0.0, 3.0, rate)
     mass = model.terms(y, 0.0, 3.0).mass
-    limit = forces.traction_limit(tr.traction, 3.0)
+    limit = laws.traction_limit(tr.traction, 3.0)
     assert (held - natural)[model.layout.speed] == pytest.approx((limit - 1e3) / mass, rel=1e-12)
 
 
@@ -186,7 +191,7 @@ def test_adaptive_error_control_no_longer_accepts_a_step_across_a_kink(method, r
 def test_the_steering_is_the_actuators_closed_form():
     """With kinks split, psi_1 after every tick is the actuator's exact motion (kernel.actuator_psi)
     from the tick's start, not a stepped approximation of it: equal to an independent DOP853
-    solution of psi_1' = actuator(psi_1, command) alone (actuator.py) at rtol 1e-12."""
+    solution of psi_1' = actuator(psi_1, command) alone (test/laws.py) at rtol 1e-12."""
     from scipy.integrate import solve_ivp
 
     scene = kinks_scene(duration=8.0)

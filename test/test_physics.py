@@ -15,7 +15,7 @@ from mta_sim_ros.physics.geometry import cart_points
 from mta_sim_ros.physics.guards import jackknife_margin
 from mta_sim_ros.physics.holonomic import HolonomicReduction
 from mta_sim_ros.physics.steady import SteadyStateError, steady_circle
-from mta_sim_ros.run.simulation import Simulation, evaluate_outputs, run_scene
+from mta_sim_ros.run.simulation import Simulation, run_scene
 
 # Trains for the closed-form checks: n = 1..5, the 4th cart is hitched in front of its axle.
 TRAINS = {n: trains.train(n) for n in range(1, 6)}
@@ -92,7 +92,7 @@ def test_no_side_slip_and_element_speeds(n):
         dy = model.rhs(0.0, y, 0.0, 0.0)
         qdot = dy[: n + 2]
         v = point_velocities(tr, y, qdot)
-        out = evaluate_outputs(model, 0.0, y, 0.0, 0.0)
+        out = model.outputs(0.0, y, 0.0, 0.0)
         th = y[model.layout.heading]
         e = np.stack((np.cos(th), np.sin(th)), axis=1)
         normal = np.stack((-np.sin(th), np.cos(th)), axis=1)
@@ -106,14 +106,14 @@ def test_no_side_slip_and_element_speeds(n):
 
 
 def test_outputs_jackknife_margin_is_the_guards_at_any_speed():
-    """evaluate_outputs takes psi_k from the chain it walked at the state's speed V; the guard walks
+    """A level's outputs take psi_k from the chain it walked at the state's speed V; the guard walks
     it at V = 0. psi_k is geometry (headings and psi_1), so the margins agree exactly."""
     rng = np.random.default_rng(11)
     for n in (2, 3, 5):
         model = Model(TRAINS[n])
         for _ in range(50):
             y = trains.random_state(model, rng, spread=0.8)
-            out = evaluate_outputs(model, 0.0, y, 0.1, 3.0)
+            out = model.outputs(0.0, y, 0.1, 3.0)
             assert out.jackknife_margin == jackknife_margin(model, y)[0]
 
 

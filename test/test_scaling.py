@@ -29,7 +29,7 @@ from benchmarks.scaling import ENDLESS, bench_scene, default_train, scaled_train
 from mta_sim_ros.physics import kernel
 from mta_sim_ros.physics.dynamics import Model
 from mta_sim_ros.physics.steady import steady_circle
-from mta_sim_ros.run.simulation import Simulation, evaluate_outputs, run_scene
+from mta_sim_ros.run.simulation import Simulation, run_scene
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -42,7 +42,8 @@ LAWS = {
 
 def python_rhs(model, y, command, v_set):
     """The kernel's y' run as plain Python (kernel.rhs_of.py_func)."""
-    return kernel.rhs_of.py_func(model.P, np.asarray(y, dtype=np.float64), float(command), float(v_set))
+    return kernel.rhs_of.py_func(model.P, np.asarray(y, dtype=np.float64), float(command), float(v_set),
+                                 kernel.max_rate_of(model.P))
 
 
 def long_train(n: int, traction=trains.GOVERNOR):
@@ -207,7 +208,7 @@ def test_the_100_cart_train_settles_on_the_closed_form_circles():
                       step=20.0, rtol=1e-11, atol=1e-11, steering=steering)
     sim, err = run_scene(sc)
     assert err is None, err
-    out = evaluate_outputs(sim.model, sim.t, sim.y, steering, 5.0)
+    out = sim.model.outputs(sim.t, sim.y, steering, 5.0)
     th1 = out.heading[0]
     centre = out.axle[0] + expected.R_B[0] * np.array([-math.sin(th1), math.cos(th1)])
     np.testing.assert_allclose(np.hypot(*(out.axle - centre).T), expected.R_B, rtol=1e-6)

@@ -98,8 +98,9 @@ def test_a_straight_train_speeding_up_pulls_mass_times_acceleration_too(accel_fo
     model = Simulation(scene).model
     y = np.array(model_state(model, 3.0))
     y[model.layout.governor] += accel_force  # traction above (below) the balance: V' != 0
-    cart, _ = kernel.pulls_of(model.P, y, 0.0, 3.0)
-    accel = kernel.rhs_of(model.P, y, 0.0, 3.0)[model.layout.speed]
+    rate = kernel.max_rate_of(model.P)
+    cart, _ = kernel.pulls_of(model.P, y, 0.0, 3.0, rate)
+    accel = kernel.rhs_of(model.P, y, 0.0, 3.0, rate)[model.layout.speed]
     assert abs(accel) > 0.1
     masses = [c.mass for c in scene.train.carts]
     for k in range(1, scene.train.n):
@@ -124,7 +125,7 @@ def test_the_last_cart_in_a_steady_turn_pulls_its_resistance_less_its_centripeta
     from mta_sim_ros.run.simulation import initial_state
 
     y = initial_state(scene, model)
-    cart, _ = kernel.pulls_of(model.P, y, psi, 3.0)
+    cart, _ = kernel.pulls_of(model.P, y, psi, 3.0, kernel.max_rate_of(model.P))
     circle = steady_circle(scene.train, psi)
     omega = 3.0 / circle.R_A[0]
     last = scene.train.carts[-1]

@@ -18,7 +18,7 @@ from ..physics.kernel.motion import clear, model_rhs, switches
 
 
 @jitable
-def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode, lag):
+def rk_step(f, P, T, t, y, command, v_set, max_rate, h, K, tmp, out, rec, mode, lag):
     """One step of length h of the explicit tableau T from y into ``out``; returns the stages.
 
     ``lag`` = (on, psi0, command, release, T0): when on, the steering angle psi_1 is not stepped
@@ -37,7 +37,7 @@ def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode, lag):
     size = y.shape[0]
     exact = lag[0] != 0.0
     ip = int(P[H.n]) + 2 if exact else 0
-    f(P, t, y, command, v_set, K[0], rec, mode)
+    f(P, t, y, command, v_set, max_rate, K[0], rec, mode)
     for i in range(1, stages + 1):
         scale = h / T[i, 0]
         for m in range(size):
@@ -56,10 +56,10 @@ def rk_step(f, P, T, t, y, command, v_set, h, K, tmp, out, rec, mode, lag):
                 out[m] = value
         if i < stages:
             if exact:
-                tmp[ip] = actuator_psi(P, lag[1], lag[2], lag[3], lag[4] + T[stages + 1, 1 + i] * h)
-            f(P, t + T[stages + 1, 1 + i] * h, tmp, command, v_set, K[i], rec, mode)
+                tmp[ip] = actuator_psi(P, lag[1], lag[2], max_rate, lag[3], lag[4] + T[stages + 1, 1 + i] * h)
+            f(P, t + T[stages + 1, 1 + i] * h, tmp, command, v_set, max_rate, K[i], rec, mode)
     if exact:
-        out[ip] = actuator_psi(P, lag[1], lag[2], lag[3], lag[4] + h)
+        out[ip] = actuator_psi(P, lag[1], lag[2], max_rate, lag[3], lag[4] + h)
     return stages
 
 
@@ -103,7 +103,7 @@ def illinois_update(lo, hi, f_lo, f_hi, side, tau, f_tau, far):
 
 
 @jitable
-def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, rec, mode, lag, g):
+def _locate(f, sw, P, T, t, y, command, v_set, max_rate, h, j, g_lo, g_hi, K, tmp, trial, rec, mode, lag, g):
     """The step length in (0, h] at which switching function j changes sign along this method's
     step from y with the branches ``mode`` held (the Illinois method on tau -> g_j(step(y, tau))).
     Returns (tau on the far side of the switch, right-hand sides evaluated)."""
@@ -116,15 +116,15 @@ def _locate(f, sw, P, T, t, y, command, v_set, h, j, g_lo, g_hi, K, tmp, trial, 
         if hi - lo <= 4e-16 * h + 1e-300:
             break
         tau = illinois_point(lo, hi, f_lo, f_hi)
-        nfev += rk_step(f, P, T, t, y, command, v_set, tau, K, tmp, trial, rec, mode, lag)
+        nfev += rk_step(f, P, T, t, y, command, v_set, max_rate, tau, K, tmp, trial, rec, mode, lag)
         sw(P, trial, command, v_set, g)
         lo, hi, f_lo, f_hi, side = illinois_update(lo, hi, f_lo, f_hi, side, tau, g[j], far)
     return hi, nfev
 
 
 @jitable
-def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
-    """Integrate from t0 to t1 with the input held: ceil((t1 - t0) / max_step) equal steps of the
+def advance(f, sw, P, T, y0, command, v_set, max_rate, t0, t1, max_step, split):
+    """Integrate from t0 to t1 with the input (command, v_set, max_rate) held: ceil((t1 - t0) / max_step) equal steps of the
     tableau T. Returns (y1, right-hand sides evaluated, kinks split at).
 
     With ``split``, each step runs on one branch of every non-smooth law (``mode``: the branch at
@@ -135,7 +135,8 @@ def advance(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split):
     method keeps its order. A kernel model's steering angle then follows the actuator's closed
     form (``actuator_psi``, see ``rk_step``). Without ``split`` every law follows the state and
     psi_1 is stepped like the rest (the code before kink splitting, bit for bit)."""
-    return advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, workspace(P, T, y0.shape[0]))
+    return advance_in(f, sw, P, T, y0, command, v_set, max_rate, t0, t1, max_step, split,
+                      workspace(P, T, y0.shape[0]))
 
 
 @jitable
@@ -149,7 +150,7 @@ def workspace(P, T, size):
 
 
 @jitable
-def advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, work):
+def advance_in(f, sw, P, T, y0, command, v_set, max_rate, t0, t1, max_step, split, work):
     """``advance`` in the arrays of ``workspace`` (a whole run allocates them once, ``run``)."""
     K, tmp, y, y1, rec, lag, g0, g1, g, changed, mode, trial = work
     y[:] = y0
@@ -160,14 +161,14 @@ def advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, work):
     if not split:
         natural = no_mode()
         for i in range(count):
-            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, h, K, tmp, y1, rec, natural, lag)
+            nfev += rk_step(f, P, T, t0 + i * h, y, command, v_set, max_rate, h, K, tmp, y1, rec, natural, lag)
             y, y1 = y1, y
         return y.copy(), nfev, 0
     n = int(P[H.n]) if P.shape[0] else 0
     changed[:] = False
     mode[:] = NATURAL
     kinks = 0
-    release = actuator_release(P, y[n + 2], command) if P.shape[0] else math.inf
+    release = actuator_release(P, y[n + 2], command, max_rate) if P.shape[0] else math.inf
     released = not EDGE * h < release < math.inf  # not rate-limited, or letting go at the start
     if P.shape[0]:  # a kernel model: its actuator in closed form (rk_step)
         lag[0], lag[1], lag[2], lag[3] = 1.0, y[n + 2], command, release
@@ -189,18 +190,18 @@ def advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, work):
                     length, at_release = until, True
             mode[0] = LOW if released else HIGH
             lag[4] = i * h + done
-            nfev += rk_step(f, P, T, ts + done, y, command, v_set, length, K, tmp, y1, rec, mode, lag)
+            nfev += rk_step(f, P, T, ts + done, y, command, v_set, max_rate, length, K, tmp, y1, rec, mode, lag)
             sw(P, y1, command, v_set, g1)
             if m and splits < MAX_SPLITS and _changed(g0, g1, m, changed):
                 tau = length
                 for j in range(m):
                     if changed[j]:
-                        tj, used = _locate(f, sw, P, T, ts + done, y, command, v_set, length, j, g0[j], g1[j],
-                                           K, tmp, trial, rec, mode, lag, g)
+                        tj, used = _locate(f, sw, P, T, ts + done, y, command, v_set, max_rate, length, j, g0[j],
+                                           g1[j], K, tmp, trial, rec, mode, lag, g)
                         nfev += used
                         tau = pymin(tau, tj)
                 if EDGE * h < tau < length - EDGE * h:
-                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, tau, K, tmp, y1, rec, mode, lag)
+                    nfev += rk_step(f, P, T, ts + done, y, command, v_set, max_rate, tau, K, tmp, y1, rec, mode, lag)
                     y, y1 = y1, y
                     sw(P, y, command, v_set, g0)
                     branches(g0, m, mode)
@@ -222,8 +223,8 @@ def advance_in(f, sw, P, T, y0, command, v_set, t0, t1, max_step, split, work):
 
 
 @entry
-def tick(P, T, y0, command, v_set, t0, t1, max_step, split):
+def tick(P, T, y0, command, v_set, max_rate, t0, t1, max_step, split):
     """One tick of the model from t0 to t1 (``advance`` on ``rhs`` and ``switches``). Returns
     (y1, clear, right-hand sides evaluated, kinks split at); clear: see ``clear``."""
-    y, nfev, kinks = advance(model_rhs, switches, P, T, y0, command, v_set, t0, t1, max_step, split)
+    y, nfev, kinks = advance(model_rhs, switches, P, T, y0, command, v_set, max_rate, t0, t1, max_step, split)
     return y, clear(P, y), nfev, kinks

@@ -47,8 +47,8 @@ class IntegrationError(RuntimeError):
 
 
 def _callable_rhs(fun: Fun):
-    """``fun(t, y)`` in the stepping routine's form f(P, t, y, command, v_set, dy, rec, mode)."""
-    def f(P, t, y, command, v_set, dy, rec, mode):
+    """``fun(t, y)`` in the stepping routine's form f(P, t, y, command, v_set, max_rate, dy, rec, mode)."""
+    def f(P, t, y, command, v_set, max_rate, dy, rec, mode):
         dy[:] = fun(t, y)
     return f
 
@@ -74,14 +74,15 @@ class FixedStep:
         self.kinks = 0
 
     def tick(self, P: np.ndarray, y0: np.ndarray, t0: float, t1: float, command: float, v_set: float,
-             compiled: bool = True) -> tuple[np.ndarray, bool]:
-        """The model with packed constants P (``physics.kernel.pack``) from t0 to t1 with (command,
-        v_set) held, in one call: (y1, clear), clear = y1 is finite and clearly inside the jackknife
+             max_rate: float, compiled: bool = True) -> tuple[np.ndarray, bool]:
+        """The model with packed constants P (``physics.kernel.pack``) from t0 to t1 with the input
+        (command, v_set, max_rate) held, in one call: (y1, clear), clear = y1 is finite and clearly inside the jackknife
         limits (``physics.kernel.clear``; otherwise the caller runs ``guards.check_state``).
         ``compiled`` = False runs the kernel as plain Python (the same numbers)."""
         run = rk.tick if compiled else rk.tick.py_func
         y1, clear, nfev, kinks = run(P, self._T, np.ascontiguousarray(y0, dtype=np.float64), float(command),
-                                     float(v_set), float(t0), float(t1), self.step, self.split_kinks)
+                                     float(v_set), float(max_rate), float(t0), float(t1), self.step,
+                                     self.split_kinks)
         self.nfev += nfev
         self.kinks += kinks
         return y1, bool(clear)
@@ -89,8 +90,8 @@ class FixedStep:
     def advance(self, fun: Fun, t0: float, y0: np.ndarray, t1: float) -> np.ndarray:
         """y' = fun(t, y) from t0 to t1 (any callable; no kink information: none are split)."""
         y, nfev, _ = rk.advance(_callable_rhs(fun), kernel.no_switches, _NO_PARAMS, self._T,
-                                    np.array(y0, dtype=float), 0.0, 0.0, float(t0), float(t1), float(self.step),
-                                    False)
+                                np.array(y0, dtype=float), 0.0, 0.0, 0.0, float(t0), float(t1), float(self.step),
+                                False)
         self.nfev += nfev
         return y
 
@@ -99,14 +100,14 @@ class Held:
     """A kernel model's right-hand side with its non-smooth laws held on one branch each (see
     ``physics.kernel.rhs``): what an adaptive solver steps between two kinks."""
 
-    def __init__(self, P: np.ndarray, command: float, v_set: float, compiled: bool = True):
-        self.P, self.command, self.v_set = P, float(command), float(v_set)
+    def __init__(self, P: np.ndarray, command: float, v_set: float, max_rate: float, compiled: bool = True):
+        self.P, self.command, self.v_set, self.max_rate = P, float(command), float(v_set), float(max_rate)
         pick = (lambda f: f) if compiled else (lambda f: f.py_func)
         self._rhs, self._mode, self._switches = pick(kernel.held_rhs_of), pick(kernel.mode_of), pick(kernel.switches_of)
 
     def rhs(self, mode: np.ndarray) -> Fun:
-        P, c, v, run = self.P, self.command, self.v_set, self._rhs
-        return lambda t, y: run(P, np.ascontiguousarray(y, dtype=np.float64), c, v, mode)
+        P, c, v, r, run = self.P, self.command, self.v_set, self.max_rate, self._rhs
+        return lambda t, y: run(P, np.ascontiguousarray(y, dtype=np.float64), c, v, r, mode)
 
     def mode(self, y: np.ndarray, rate_limited: bool) -> np.ndarray:
         return self._mode(self.P, np.ascontiguousarray(y, dtype=np.float64), self.command, self.v_set, rate_limited)

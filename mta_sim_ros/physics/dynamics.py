@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import forces, kernel
-from .actuator import steering_rate
+from . import kernel
 from .chain import Chain, ChainGeometry, chain
+from .outputs import Outputs, kernel_outputs, reference_outputs
 from .spec import Train
 
 
@@ -87,7 +87,10 @@ class Terms:
 
 
 class Model:
-    """The equations of one train. Immutable after construction; the state is a numpy array."""
+    """The dynamic level (levels.Level): the equations of one train. Immutable after construction;
+    the state is a numpy array."""
+
+    name = "dynamic"
 
     def __init__(self, train: Train, algorithm: int = 2):
         if algorithm not in (1, 2):
@@ -96,8 +99,10 @@ class Model:
         self.algorithm = algorithm
         self.layout = StateLayout(train.n)
         self.P = kernel.pack(train)  # the constants as the kernels read them
+        self.P_outputs = self.P
+        self.has_kernel = algorithm == 2
+        self.dynamic = self
         self.geom = ChainGeometry.of(self.P)
-        self.resistances = forces.cart_resistances(train)
         self.masses = kernel.column(self.P, "mass")
         self.inertias = kernel.column(self.P, "inertia")
         if algorithm == 1:
@@ -105,15 +110,26 @@ class Model:
 
             self._holonomic = HolonomicReduction(train)
 
+    # -- the level's state and inputs (levels.Level) ----------------------------------------
+    def from_dynamic_state(self, y) -> np.ndarray:
+        return np.array(y, dtype=float)
+
+    def begin_tick(self, y, v_set: float, tick: float):
+        return y
+
+    def output_input(self, y, v_set: float) -> float:
+        return v_set
+
     # -- the equations ---------------------------------------------------------------------
-    def terms(self, y, command: float, v_set: float) -> Terms:
-        """Evaluate the model at state y with the held input (command, v_set)."""
+    def terms(self, y, command: float, v_set: float, max_rate: float | None = None) -> Terms:
+        """Evaluate the model at state y with the held input (command, v_set, max_rate; None: the
+        actuator's own rate limit)."""
         L = self.layout
         n = L.n
         yl = y.tolist() if isinstance(y, np.ndarray) else list(y)
         heading = yl[2 : 2 + n]
         psi1, V, z = yl[L.steering], yl[L.speed], yl[L.governor]
-        psi_rate = steering_rate(self.train.actuator, psi1, command)
+        psi_rate = kernel.steering_rate(self.P, psi1, command, kernel.max_rate_of(self.P, max_rate), kernel.NATURAL)
         ch = chain(self.geom, heading, psi1, V, psi_rate)
 
         if self.algorithm == 2:
@@ -121,37 +137,23 @@ class Model:
         else:
             mass, velocity_term = self._holonomic.reduce(yl, ch, V, psi_rate)
 
-        v0 = self.train.smoothing_speed
-        resistance = [r.force(kb * V, v0) for r, kb in zip(self.resistances, ch.kapB)]
+        resistance = [kernel.resistance(self.P, k, kb * V, kernel.NATURAL) for k, kb in enumerate(ch.kapB)]
         generalized_resistance = resistance_force(resistance, ch.kapB)
-        traction, acceleration, governor_rate = self._traction(mass, velocity_term, generalized_resistance,
-                                                               V, v_set, z)
-        return Terms(ch, mass, velocity_term, resistance, traction, psi_rate, acceleration, governor_rate)
-
-    def _traction(self, mass: float, velocity_term: float, generalized_resistance: float, V: float,
-                  v_set: float, z: float) -> tuple[float, float, float]:
-        """(F_A1, V', z') from M V' = F_A1 - sum F_Bk kapB_k - R and the traction law."""
-        traction_spec = self.train.traction
-        governor_rate = 0.0
-        if traction_spec.law == "prescribed_speed":
-            acceleration = forces.prescribed_acceleration(traction_spec, V, v_set)
+        traction, acceleration, governor_rate, prescribed = kernel.traction_law(self.P, V, v_set, z, kernel.no_mode())
+        if prescribed:
             traction = mass * acceleration + generalized_resistance + velocity_term  # inverse dynamics
         else:
-            if traction_spec.law == "governor":
-                traction, governor_rate = forces.governor(traction_spec, V, v_set, z)
-            else:
-                traction = traction_spec.force
             acceleration = cauchy_acceleration(traction, generalized_resistance, velocity_term, mass)
-        return traction, acceleration, governor_rate
+        return Terms(ch, mass, velocity_term, resistance, traction, psi_rate, acceleration, governor_rate)
 
     def _direct(self, ch: Chain, V: float) -> tuple[float, float]:
         """Algorithm 2 (``mass_terms``)."""
         return mass_terms(self.masses, self.inertias, ch, V)
 
-    def derivative(self, y, command: float, v_set: float) -> tuple[np.ndarray, Terms]:
+    def derivative(self, y, command: float, v_set: float, max_rate: float | None = None) -> tuple[np.ndarray, Terms]:
         """y' and the terms it came from."""
         L = self.layout
-        tm = self.terms(y, command, v_set)
+        tm = self.terms(y, command, v_set, max_rate)
         V = float(y[L.speed])
         course = float(y[2]) + float(y[L.steering])  # direction of v_A1
         dy = [V * math.cos(course), V * math.sin(course)]
@@ -159,14 +161,24 @@ class Model:
         dy.extend((tm.steering_rate, tm.acceleration, tm.governor_rate))
         return np.array(dy), tm
 
-    def rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
+    def rhs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None) -> np.ndarray:
         """The Cauchy form y' = f(t, y, input) with the input held (t does not enter).
 
         Algorithm 2: the kernel (``kernel.rhs``, compiled where numba runs), equal to
         ``derivative(y, ...)[0]`` to the last bit. Algorithm 1: ``derivative``."""
         if self.algorithm == 2:
-            return kernel.rhs_of(self.P, np.asarray(y, dtype=np.float64), float(command), float(v_set))
-        return self.derivative(y, command, v_set)[0]
+            return kernel.rhs_of(self.P, np.asarray(y, dtype=np.float64), float(command), float(v_set),
+                                 kernel.max_rate_of(self.P, max_rate))
+        return self.derivative(y, command, v_set, max_rate)[0]
+
+    def outputs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None,
+                compiled: bool = True) -> Outputs:
+        """What the simulator reports at state y: through the kernel (algorithm 2; ``compiled`` =
+        False: as plain Python), or from the reference path (algorithm 1)."""
+        if not self.has_kernel:
+            return reference_outputs(self, t, y, command, v_set, max_rate)
+        return kernel_outputs(self.P_outputs, t, y, command, v_set, kernel.max_rate_of(self.P, max_rate),
+                              compiled=compiled)
 
     # -- energy ----------------------------------------------------------------------------
     def kinetic_energy(self, y, command: float = 0.0, v_set: float = 0.0) -> float:

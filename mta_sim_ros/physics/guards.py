@@ -33,10 +33,7 @@ def jackknife_margin(model, y) -> tuple[float, int]:
     has no hitch: (inf, -1). Computed by ``kernel.margin`` (psi_k from the chain at the state's
     pose; it does not depend on the speed)."""
     # every level's state starts with x, y, th_1..th_n, psi_1: the kernel reads only those
-    P = getattr(model, "P", None)
-    if P is None:
-        P = model.dynamic.P
-    best, where = kernel.margin_of(P, np.ascontiguousarray(y[: model.layout.n + 3], dtype=np.float64))
+    best, where = kernel.margin_of(model.P, np.ascontiguousarray(y[: model.layout.n + 3], dtype=np.float64))
     return float(best), int(where)
 
 

@@ -30,18 +30,19 @@ import math
 import numpy as np
 
 from . import kernel
-from .actuator import steering_rate
 from .chain import ChainGeometry, chain
 from .dynamics import Model, StateLayout, Terms
+from .outputs import Outputs, kernel_outputs, reference_outputs
 from .spec import Traction, Train
 
 COMMANDED_SPEED_LAWS = ("governor", "prescribed_speed")
 
 
 class KinematicModel:
-    """q' = G V(t) with V(t) prescribed; Terms (traction, resistance, mass) by inverse dynamics."""
+    """The kinematic level (levels.Level): q' = G V(t) with V(t) prescribed; Terms (traction,
+    resistance, mass) by inverse dynamics."""
 
-    level = "kinematic"
+    name = "kinematic"
 
     def __init__(self, train: Train, algorithm: int = 2):
         if train.traction.law not in COMMANDED_SPEED_LAWS:
@@ -59,6 +60,7 @@ class KinematicModel:
         inverse = dataclasses.replace(train, traction=Traction("prescribed_speed", response_time=1.0))
         self._inverse = Model(inverse, algorithm=algorithm)
         self.P_outputs = self._inverse.P  # outputs_of(P_outputs, y, command, V + V') = this level's outputs
+        self.has_kernel = algorithm == 2  # algorithm 1 reports from the reference path
 
     def from_dynamic_state(self, y: np.ndarray) -> np.ndarray:
         """The kinematic state for a dynamic one: the same pose and speed, V' = 0."""
@@ -72,17 +74,18 @@ class KinematicModel:
         y[self.layout.governor] = (v_set - y[self.layout.speed]) / tick
         return y
 
-    def rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
+    def rhs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None) -> np.ndarray:
         """y' = (G V, psi_1', V', 0): the chain only, no forces (``kernel.rhs`` with law kinematic;
         ``reference_rhs`` is the same from chain.py)."""
-        return kernel.rhs_of(self.P, np.asarray(y, dtype=np.float64), float(command), float(v_set))
+        return kernel.rhs_of(self.P, np.asarray(y, dtype=np.float64), float(command), float(v_set),
+                             kernel.max_rate_of(self.P, max_rate))
 
-    def reference_rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
+    def reference_rhs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None) -> np.ndarray:
         """``rhs`` from the readable chain (chain.py)."""
         L = self.layout
         yl = y.tolist() if isinstance(y, np.ndarray) else list(y)
         psi1, V, accel = yl[L.steering], yl[L.speed], yl[L.governor]
-        psi_rate = steering_rate(self.train.actuator, psi1, command)
+        psi_rate = kernel.steering_rate(self.P, psi1, command, kernel.max_rate_of(self.P, max_rate), kernel.NATURAL)
         ch = chain(self.geom, yl[2: 2 + L.n], psi1, V, psi_rate)
         course = yl[2] + psi1
         dy = [V * math.cos(course), V * math.sin(course)]
@@ -94,17 +97,26 @@ class KinematicModel:
         """The set-point under which ``P_outputs`` (prescribed speed, 1 s lag) has V' = the ramp slope."""
         return float(y[self.layout.speed]) + float(y[self.layout.governor])
 
-    def terms(self, y, command: float, v_set: float) -> Terms:
+    def terms(self, y, command: float, v_set: float, max_rate: float | None = None) -> Terms:
         """Inverse dynamics at y: the traction that gives the prescribed V' (the held v_set is not
         used: the ramp slope in the state is the acceleration)."""
         L = self.layout
         V, accel = float(y[L.speed]), float(y[L.governor])
-        tm = self._inverse.terms(y, command, V + accel)  # V' = (V + accel - V) / 1 s = accel
+        tm = self._inverse.terms(y, command, V + accel, max_rate)  # V' = (V + accel - V) / 1 s = accel
         tm.acceleration, tm.governor_rate = accel, 0.0
         return tm
 
-    def derivative(self, y, command: float, v_set: float):
-        return self.rhs(0.0, y, command, v_set), self.terms(y, command, v_set)
+    def derivative(self, y, command: float, v_set: float, max_rate: float | None = None):
+        return self.rhs(0.0, y, command, v_set, max_rate), self.terms(y, command, v_set, max_rate)
+
+    def outputs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None,
+                compiled: bool = True) -> Outputs:
+        """What the simulator reports: the inverse dynamics of ``P_outputs`` at the ramp's V'
+        (``output_input``), through the kernel (algorithm 2) or the reference path (algorithm 1)."""
+        if not self.has_kernel:
+            return reference_outputs(self, t, y, command, v_set, max_rate)
+        return kernel_outputs(self.P_outputs, t, y, command, v_set, kernel.max_rate_of(self.P, max_rate),
+                              law_input=self.output_input(y, v_set), compiled=compiled)
 
     def kinetic_energy(self, y, command: float = 0.0, v_set: float = 0.0) -> float:
         tm = self.terms(y, command, v_set)

@@ -1,9 +1,10 @@
 """What the simulator reports at one instant, from a state of any fidelity level.
 
-The dynamic and kinematic levels report through the kernel (``kernel.outputs``: one pass, compiled
-where numba runs); ``reference_outputs`` builds the same numbers from the readable reference
-(chain.py, ``dynamics.Model.terms``, geometry.py, guards.py) for the tests to hold the kernel to.
-The slip level reports through its own ``outputs``.
+Every level reports through its own ``outputs`` (levels.Level). The dynamic and kinematic levels
+call ``kernel_outputs`` (``kernel.outputs``: one pass, compiled where numba runs);
+``reference_outputs`` builds the same numbers from the readable reference (chain.py,
+``dynamics.Model.terms``, geometry.py, guards.py): algorithm 1's path, and what the tests hold the
+kernel to. The slip level builds its own.
 """
 from __future__ import annotations
 
@@ -42,19 +43,16 @@ class Outputs:
     jackknife_margin: float  # rad, see guards.jackknife_margin
 
 
-def evaluate(model, t: float, y, command: float, v_set: float, compiled: bool = True) -> Outputs:
-    """The Outputs of state y under the held input (command, v_set); ``compiled`` = False runs the
-    kernel as plain Python (the same numbers)."""
-    own = getattr(model, "outputs", None)
-    if own is not None:  # a level with its own state layout (slip)
-        return own(t, y, command, v_set)
-    # the kinematic level reports its inverse dynamics: the prescribed-speed law whose V' is the ramp
-    P = getattr(model, "P_outputs", model.P)
-    law_input = model.output_input(y, v_set) if hasattr(model, "output_input") else v_set
+def kernel_outputs(P: np.ndarray, t: float, y, command: float, v_set: float, max_rate: float,
+                   law_input: float | None = None, compiled: bool = True) -> Outputs:
+    """The Outputs of state y of a kernel level with packed constants P under the held input
+    (command, v_set, max_rate). ``law_input`` is what the traction law of P reads in place of v_set
+    (the kinematic level's inverse dynamics: ``KinematicModel.output_input``); ``compiled`` = False
+    runs the kernel as plain Python (the same numbers)."""
     y = np.ascontiguousarray(y, dtype=np.float64)
     run = kernel.outputs_of if compiled else kernel.outputs_of.py_func
-    cart, sc = run(P, y, float(command), float(law_input))
-    n = model.layout.n
+    cart, sc = run(P, y, float(command), float(v_set if law_input is None else law_input), float(max_rate))
+    n = cart.shape[0]
     V = float(y[n + 3])
     traction = float(sc[kernel.TRACTION])
     return Outputs(
@@ -68,12 +66,14 @@ def evaluate(model, t: float, y, command: float, v_set: float, compiled: bool = 
         jackknife_margin=float(sc[kernel.MARGIN]))
 
 
-def reference_outputs(model, t: float, y: np.ndarray, command: float, v_set: float) -> Outputs:
-    """``evaluate`` for a no-slip level, built from the readable reference path."""
+def reference_outputs(model, t: float, y: np.ndarray, command: float, v_set: float,
+                      max_rate: float | None = None) -> Outputs:
+    """``kernel_outputs`` for a no-slip level, built from the readable reference path (its
+    ``terms``)."""
     from .guards import JACKKNIFE_PSI
 
     L = model.layout
-    tm = model.terms(y, command, v_set)
+    tm = model.terms(y, command, v_set, max_rate)
     ch = tm.chain
     V = float(y[L.speed])
     heading = y[L.heading]

@@ -33,12 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import forces
-from .actuator import steering_rate
+from . import kernel
 from .chain import ChainGeometry, chain
 from .dynamics import Model, PoseLayout
 from .geometry import cart_points, hitch_angles
 from .holonomic import HolonomicReduction
+from .outputs import Outputs
 from .spec import Train
 
 # Normalised cornering stiffness C_alpha / F_z of an agricultural tyre on soil, per rad. An
@@ -125,13 +125,16 @@ class SlipModel:
     """Planar carts joined by pins, linear tyres at every axle; traction and resistance laws as
     in the dynamic level."""
 
-    level = "slip"
+    name = "slip"
+    has_kernel = False  # its own Python right-hand side and outputs
 
     def __init__(self, train: Train, algorithm: int = 2):
         self.train = train
+        self.algorithm = algorithm
         self.layout = SlipLayout(train.n)
         self.geom = ChainGeometry.of(train)  # for the guards (jackknife margin)
         self.dynamic = Model(train, algorithm=algorithm)
+        self.P = self.P_outputs = self.dynamic.P  # the train's constants: laws, actuator, guards
         self._hol = HolonomicReduction(train)
         DB = self._hol.DB
         self._DB = DB
@@ -139,7 +142,6 @@ class SlipModel:
         DA = DB.copy()  # A_k (k >= 2) = B_{k-1} - a_{k-1} e_{k-1}: the row of B_k without its own e_k
         np.fill_diagonal(DA, 0.0)
         self._DA = DA
-        self.resistances = forces.cart_resistances(train)
         self.front_stiffness, self.stiffness = axle_stiffness(train)
 
     # -- conversion from the no-slip state ----------------------------------------------------
@@ -158,6 +160,12 @@ class SlipModel:
         out[L.governor] = y[Ld.governor]
         return out
 
+    def begin_tick(self, y, v_set: float, tick: float):
+        return y
+
+    def output_input(self, y, v_set: float) -> float:
+        return v_set
+
     # -- the equations -------------------------------------------------------------------------
     def _generalized(self, front_force: np.ndarray, forces_B: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Q_h = J_A1^T F_A + sum_k J_Bk^T F_Bk, with J_P^T F = (F, D_j n_j.F for each j)."""
@@ -168,7 +176,7 @@ class SlipModel:
         Q[2:] = np.einsum("ij,ij->i", normals, weighted)
         return Q
 
-    def terms(self, y, command: float, v_set: float) -> SlipTerms:
+    def terms(self, y, command: float, v_set: float, max_rate: float | None = None) -> SlipTerms:
         L = self.layout
         n = L.n
         tr = self.train
@@ -196,36 +204,31 @@ class SlipModel:
         slip = np.arctan(v_lat / np.hypot(v_long, v0))
         front_lateral = -self.front_stiffness * front_slip
         lateral = -self.stiffness * slip
-        resistance = np.array([r.force(vl, v0) for r, vl in zip(self.resistances, v_long.tolist())])
+        P = self.P
+        resistance = np.array([kernel.resistance(P, k, vl, kernel.NATURAL) for k, vl in enumerate(v_long.tolist())])
         forces_B = -resistance[:, None] * E + lateral[:, None] * N
         Q = self._generalized(front_lateral * nd, forces_B, N)
         Mh = self._hol.mass_matrix(heading)
         h = self._hol.velocity_forces(heading, w)
         unit = np.zeros(n + 2)
         unit[:2] = d  # generalized force of a unit traction along d at A_1
-        psi_rate = steering_rate(tr.actuator, psi1, command)
+        psi_rate = kernel.steering_rate(P, psi1, command, kernel.max_rate_of(P, max_rate), kernel.NATURAL)
 
-        law = tr.traction
-        governor_rate = 0.0
-        if law.law == "prescribed_speed":
+        traction, target, governor_rate, prescribed = kernel.traction_law(P, V, v_set, z, kernel.no_mode())
+        if prescribed:
             base, per_newton = np.linalg.solve(Mh, np.stack((Q - h, unit), axis=1)).T
             # V' = d.u'_xy + (v_A1.n_d) (th_1' + psi_1') must equal the prescribed acceleration
-            target = forces.prescribed_acceleration(law, V, v_set)
             course_rate = float(w[0]) + psi_rate
             traction = (target - float(d @ base[:2]) - v_lat_front * course_rate) / float(d @ per_newton[:2])
             accel = base + traction * per_newton
         else:
-            if law.law == "governor":
-                traction, governor_rate = forces.governor(law, V, v_set, z)
-            else:
-                traction = law.force
             accel = np.linalg.solve(Mh, Q + traction * unit - h)
         return SlipTerms(V, psi_rate, accel, governor_rate, traction, resistance, v_long, front_slip, slip,
                          front_lateral, lateral, Mh)
 
-    def rhs(self, t: float, y, command: float, v_set: float) -> np.ndarray:
+    def rhs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None) -> np.ndarray:
         L = self.layout
-        tm = self.terms(y, command, v_set)
+        tm = self.terms(y, command, v_set, max_rate)
         dy = np.empty(L.size)
         dy[: L.n + 2] = y[L.velocity]
         dy[L.steering] = tm.steering_rate
@@ -247,15 +250,16 @@ class SlipModel:
         N = np.stack((-np.sin(heading), np.cos(heading)), axis=1)
         return u[:2] + D @ (u[2:, None] * N)
 
-    def outputs(self, t: float, y, command: float, v_set: float):
-        """The same Outputs as the other levels. psi_k (k >= 2) is the angle from e_k to the
-        actual velocity of A_k; axle_speed is v_Bk . e_k, the speed the resistance acts on."""
+    def outputs(self, t: float, y, command: float, v_set: float, max_rate: float | None = None,
+                compiled: bool = True) -> Outputs:
+        """The same Outputs as the other levels (``compiled`` does not apply: no kernel). psi_k
+        (k >= 2) is the angle from e_k to the actual velocity of A_k; axle_speed is v_Bk . e_k, the
+        speed the resistance acts on."""
         from .guards import jackknife_margin
-        from .outputs import Outputs
 
         L = self.layout
         y = np.asarray(y, dtype=float)
-        tm = self.terms(y, command, v_set)
+        tm = self.terms(y, command, v_set, max_rate)
         heading = y[L.heading]
         pts = cart_points(self.train, float(y[L.x]), float(y[L.y]), heading)
         vA = self.point_velocities(y, self._DA)

@@ -83,17 +83,18 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
     trace = np.full((ticks + 1, whole.TRACE_HEAD + whole.TRACE_CART * n), np.nan)
     if sim.compiled is None or not sim.kernel_ticks:
         return (sim, trace, commands) + _tick_by_tick(sim, commands, v_sets, trace)
-    P_out = getattr(model, "P_outputs", model.P)
+    P_out = model.P_outputs
     y = np.ascontiguousarray(sim.y, dtype=np.float64)
-    law_input = model.output_input(y, sim.v_set) if hasattr(model, "output_input") else sim.v_set
+    law_input = model.output_input(y, sim.v_set)
+    max_rates = np.full(ticks, sim.max_rate)  # a scene holds the actuator's own rate limit
     trace_of = whole.trace_of if sim.compiled else whole.trace_of.py_func
     run = whole.run if sim.compiled else whole.run.py_func
-    trace[0] = trace_of(P_out, y, float(sim.command), float(law_input))
+    trace[0] = trace_of(P_out, y, float(sim.command), float(law_input), sim.max_rate)
     stepper: FixedStep = sim.stepper
     done = 0
     while done < ticks:
-        y, done, nfev, kinks = run(model.P, P_out, stepper.tableau.packed, y, commands, v_sets, sim.tick, stepper.step,
-                                   stepper.split_kinks, done, trace)
+        y, done, nfev, kinks = run(model.P, P_out, stepper.tableau.packed, y, commands, v_sets, max_rates, sim.tick,
+                                   stepper.step, stepper.split_kinks, done, trace)
         stepper.nfev += nfev
         stepper.kinks += kinks
         sim.y, sim.ticks = y, done

@@ -1,9 +1,10 @@
 """Fidelity levels and the ``auto`` choice between them. No ROS here.
 
 Levels, cheapest first (spec.FIDELITY_LEVELS):
-    kinematic  speed prescribed, q' = G V(t); traction and power by inverse dynamics (model/kinematic.py)
-    dynamic    the article's one-degree-of-freedom model with traction and resistance laws (model/dynamics.py)
-    slip       lateral tyre compliance in place of the no-side-slip constraints (model/slip.py)
+    kinematic  speed prescribed, q' = G V(t); traction and power by inverse dynamics
+    dynamic    the article's one-degree-of-freedom model with traction and resistance laws
+    slip       lateral tyre compliance in place of the no-side-slip constraints
+(physics/levels.py builds them.)
 
 A scene says what it needs (``needs: {poses: m, speed: m/s, power: relative, hitch_angles: rad}``,
 errors against the highest level, slip) and ``fidelity: auto`` (the default) takes the cheapest
@@ -50,23 +51,6 @@ class Choice:
     level: str
     reason: str
     estimates: dict = field(default_factory=dict, compare=False)  # predicted errors per level and output
-
-
-def make_model(level: str, train: Train, algorithm: int = 2):
-    """The model of ``level`` for ``train``."""
-    if level == "dynamic":
-        from ..physics.dynamics import Model
-
-        return Model(train, algorithm=algorithm)
-    if level == "kinematic":
-        from ..physics.kinematic import KinematicModel
-
-        return KinematicModel(train, algorithm=algorithm)
-    if level == "slip":
-        from ..physics.slip import SlipModel
-
-        return SlipModel(train, algorithm=algorithm)
-    raise ValueError(f"fidelity: {level!r} must be one of {', '.join(LEVELS)}")
 
 
 # -- what the scene's inputs say -----------------------------------------------------------------

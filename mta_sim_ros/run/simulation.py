@@ -7,7 +7,6 @@ command sequence, and a run is deterministic.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
@@ -23,13 +22,14 @@ from ..integrate.steppers import FIXED_METHODS, FixedStep, Held
 from ..physics import kernel
 from ..physics.dynamics import Model
 from ..physics.guards import ModelValidityError, check_state, fast_modes
-from ..physics.outputs import Outputs, evaluate, reference_outputs
+from ..physics.levels import Level, make_level
+from ..physics.outputs import Outputs
 from ..physics.spec import Scene, Table
-from .fidelity import Choice, choose, make_model
+from .fidelity import Choice, choose
 
 NO_JIT_ENV = jit.NO_JIT_ENV  # set to 1: Simulation(compiled=None) runs the kernels as plain Python
 
-__all__ = ["Outputs", "Simulation", "evaluate_outputs", "run_scene", "initial_state", "start_state",
+__all__ = ["Outputs", "Simulation", "run_scene", "initial_state", "start_state",
            "speed_setpoint", "speed_setpoints", "table_value", "table_values"]
 
 
@@ -39,7 +39,7 @@ def kernel_path(model, compiled: bool | None) -> tuple[bool | None, str]:
 
     ``compiled``: None = compiled when numba runs and MTA_SIM_NO_JIT is not set; True = required
     (ImportError if numba cannot run); False = plain Python."""
-    if getattr(model, "P", None) is None or getattr(model, "algorithm", 2) != 2:
+    if not model.has_kernel:
         return None, "Python model (no kernel for this level and algorithm)"
     if compiled is False:
         return False, "kernels as plain Python (compiled=False)"
@@ -84,13 +84,10 @@ def initial_state(scene: Scene, model: Model) -> np.ndarray:
     return y
 
 
-def start_state(scene: Scene, model) -> np.ndarray:
+def start_state(scene: Scene, model: Level) -> np.ndarray:
     """The state at t = 0 for a model of any fidelity level: the dynamic level's initial_state,
     converted by the level's from_dynamic_state (kinematic: V' = 0; slip: u = G V, no slip yet)."""
-    convert = getattr(model, "from_dynamic_state", None)
-    if convert is None:
-        return initial_state(scene, model)
-    return convert(initial_state(scene, model.dynamic))
+    return model.from_dynamic_state(initial_state(scene, model.dynamic))
 
 
 def speed_setpoint(scene: Scene, t: float) -> float:
@@ -132,8 +129,7 @@ class Simulation:
         # integrates with slip.DEFAULT_METHOD unless a method is given here (its tyres are stiff).
         self.choice: Choice = choose(scene, forced=fidelity)
         self.level = self.choice.level
-        self.model = make_model(self.level, scene.train, algorithm)
-        self._begin_tick = getattr(self.model, "begin_tick", None)  # kinematic: the speed ramp of a tick
+        self.model: Level = make_level(self.level, scene.train, algorithm)
         integ = scene.integrator
         self.rtol, self.atol = integ.rtol, integ.atol
         if self.level == "slip":  # the scene's method and tolerances are for the no-slip levels
@@ -169,8 +165,8 @@ class Simulation:
         # the right-hand side of the adaptive methods and of the slip level
         if self.compiled is False:
             P = self.model.P
-            self._rhs = lambda t, y, c, v: kernel.rhs_of.py_func(P, np.asarray(y, dtype=np.float64), float(c),
-                                                                 float(v))
+            self._rhs = lambda t, y, c, v, r: kernel.rhs_of.py_func(P, np.asarray(y, dtype=np.float64), float(c),
+                                                                    float(v), r)
         else:
             self._rhs = self.model.rhs
         self.compile_time = 0.0
@@ -194,13 +190,13 @@ class Simulation:
 
     def _warm_up(self) -> None:
         y = np.ascontiguousarray(self.y, dtype=np.float64)
-        P = self.model.P
-        rk.tick(P, FixedStep("rk4", 1.0).tableau.packed, y, 0.0, 0.0, 0.0, 1e-3, 1e-3, True)
-        kernel.rhs_of(P, y, 0.0, 0.0)
-        kernel.outputs_of(getattr(self.model, "P_outputs", P), y, 0.0, 0.0)
+        P, rate = self.model.P, self.max_rate
+        rk.tick(P, FixedStep("rk4", 1.0).tableau.packed, y, 0.0, 0.0, rate, 0.0, 1e-3, 1e-3, True)
+        kernel.rhs_of(P, y, 0.0, 0.0, rate)
+        kernel.outputs_of(self.model.P_outputs, y, 0.0, 0.0, rate)
         kernel.margin_of(P, y)
         kernel.switches_of(P, y, 0.0, 0.0)
-        kernel.release_of(P, 0.0, 0.0)
+        kernel.release_of(P, 0.0, 0.0, rate)
 
     def reset(self) -> None:
         """Back to the scene's start, with a fresh stepper (an adaptive one forgets its last step,
@@ -211,7 +207,7 @@ class Simulation:
         self.y = start_state(self.scene, self.model)
         self.command = self.scene.initial.steering
         self.v_set = speed_setpoint(self.scene, 0.0)
-        self.set_rate_limit(None)
+        self.rate_limit: float | None = None
 
     @property
     def t(self) -> float:
@@ -224,26 +220,18 @@ class Simulation:
         return self._kernel_ticks
 
     def set_rate_limit(self, rate: float | None) -> None:
-        """The steering actuator's rate limit from the next tick on, rad/s (None: the train's own
-        max_rate): psi_1' = clip((clip(command, +-max_angle) - psi_1) / time_constant, +-rate),
-        the actuator law of docs/model.md with ``rate`` in place of max_rate (ackermann_cmd's
-        steering_angle_velocity, commands.ackermann_setting). The stability and step limits of the
-        run depend on the time constant only, so they hold. Set in every parameter array and
-        train the model and its parts read (the kernels' P, the reference and slip levels' train)."""
-        act = self.scene.train.actuator
-        rate = act.max_rate if rate is None else float(rate)
-        if rate == getattr(self, "_rate_limit", act.max_rate):
-            return
-        self._rate_limit = rate
-        actuator = dataclasses.replace(act, max_rate=rate)
-        parts = [self.model, *(v for v in vars(self.model).values() if hasattr(v, "train") or hasattr(v, "P"))]
-        for part in parts:
-            if getattr(part, "train", None) is not None:
-                part.train = dataclasses.replace(part.train, actuator=actuator)
-            for name in ("P", "P_outputs"):
-                P = getattr(part, name, None)
-                if isinstance(P, np.ndarray):
-                    P[kernel.H.max_rate] = rate
+        """Hold the steering actuator's rate limit ``rate`` (rad/s; None: the train's own max_rate)
+        from the next tick on, an input beside the command and the set-point: psi_1' =
+        clip((clip(command, +-max_angle) - psi_1) / time_constant, +-rate), the actuator law of
+        docs/model.md with ``rate`` in place of max_rate (ackermann_cmd's steering_angle_velocity,
+        commands.ackermann_setting). The stability and step limits of the run depend on the time
+        constant only, so they hold. The model is not changed."""
+        self.rate_limit = None if rate is None else float(rate)
+
+    @property
+    def max_rate(self) -> float:
+        """The steering rate limit held now, rad/s (``set_rate_limit``)."""
+        return kernel.max_rate_of(self.model.P, self.rate_limit)
 
     @property
     def kinks(self) -> int:
@@ -259,22 +247,22 @@ class Simulation:
         validity (the state before the failing tick is kept)."""
         t0 = self.t
         t1 = t0 + self.tick
-        model = self.model
-        y0 = self.y if self._begin_tick is None else self._begin_tick(self.y, v_set, self.tick)
+        model, rate = self.model, self.max_rate
+        y0 = model.begin_tick(self.y, v_set, self.tick)
         if self._kernel_ticks:  # one kernel call a tick
-            y1, clear = self.stepper.tick(model.P, y0, t0, t1, command, v_set, self.compiled)
+            y1, clear = self.stepper.tick(model.P, y0, t0, t1, command, v_set, rate, self.compiled)
             if not clear:  # non-finite or near a jackknife limit: the Python check decides and says why
                 check_state(model, t1, y1)
         else:
             rhs = self._rhs
 
             def f(t, y):
-                return rhs(t, y, command, v_set)
+                return rhs(t, y, command, v_set, rate)
 
             if isinstance(self.stepper, FixedStep):
                 y1 = self.stepper.advance(f, t0, y0, t1)
             else:
-                held = None if self.compiled is None else Held(model.P, command, v_set, self.compiled)
+                held = None if self.compiled is None else Held(model.P, command, v_set, rate, self.compiled)
                 y1 = self.stepper.tick(f, t0, y0, t1, release=self._release(y0, command), held=held)
             check_state(model, t1, y1)
         self.y = y1
@@ -284,25 +272,13 @@ class Simulation:
 
     def _release(self, y, command: float) -> float:
         """When the actuator's rate limit lets go in this tick, from its start (s; inf: it does not)."""
-        P = getattr(self.model, "P", None)
-        if P is None:
-            P = self.model.dynamic.P
-        return float(kernel.release_of(P, float(y[self.model.layout.steering]), float(command)))
+        return float(kernel.release_of(self.model.P, float(y[self.model.layout.steering]), float(command),
+                                       self.max_rate))
 
     def outputs(self) -> Outputs:
-        if self.compiled is None:
-            return evaluate_outputs(self.model, self.t, self.y, self.command, self.v_set)
-        return evaluate(self.model, self.t, self.y, self.command, self.v_set, compiled=self.compiled)
-
-
-def evaluate_outputs(model, t: float, y: np.ndarray, command: float, v_set: float) -> Outputs:
-    """Outputs of a state of any level: the slip level's own, algorithm 1's from the reference
-    path, the others' from the kernel."""
-    if getattr(model, "outputs", None) is not None:
-        return model.outputs(t, y, command, v_set)
-    if getattr(model, "algorithm", 2) != 2:
-        return reference_outputs(model, t, y, command, v_set)
-    return evaluate(model, t, y, command, v_set)
+        """What the run reports now: the level's outputs under the input held over the last tick."""
+        return self.model.outputs(self.t, self.y, self.command, self.v_set, self.rate_limit,
+                                  compiled=self.compiled is not False)
 
 
 def run_scene(scene: Scene, on_output=None, **options) -> tuple[Simulation, Exception | None]:

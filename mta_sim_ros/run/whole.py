@@ -17,10 +17,10 @@ TRACE_CART = 5
 
 
 @jitable
-def trace_row(P, y, command, law_input, cart, sc, dy, row):
+def trace_row(P, y, command, law_input, max_rate, cart, sc, dy, row):
     """The outputs of a run's trace at state y into ``row`` (TRACE_HEAD + TRACE_CART n)."""
     n = int(P[H.n])
-    outputs(P, y, command, law_input, cart, sc, dy)
+    outputs(P, y, command, law_input, max_rate, cart, sc, dy)
     drawbar_pulls(P, y, dy[n + 3], cart)
     row[TR_TRACTION], row[TR_SPEED], row[TR_MARGIN], row[TR_STEERING] = sc[TRACTION], y[n + 3], sc[MARGIN], y[n + 2]
     for k in range(n):
@@ -30,17 +30,18 @@ def trace_row(P, y, command, law_input, cart, sc, dy, row):
 
 
 @entry
-def trace_of(P_out, y, command, law_input):
+def trace_of(P_out, y, command, law_input, max_rate):
     """One trace row (``trace_row``) as a new array: a run's row 0."""
     n = int(P_out[H.n])
     row = np.empty(TRACE_HEAD + TRACE_CART * n)
-    trace_row(P_out, y, command, law_input, np.empty((n, OUT)), np.empty(SCALARS), np.empty(y.shape[0]), row)
+    trace_row(P_out, y, command, law_input, max_rate, np.empty((n, OUT)), np.empty(SCALARS), np.empty(y.shape[0]), row)
     return row
 
 
 @entry
-def run(P, P_out, T, y0, commands, v_sets, tick, max_step, split, start, trace):
-    """Ticks start, start + 1, ... of a run, tick i from t = i tick holding commands[i] and v_sets[i],
+def run(P, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split, start, trace):
+    """Ticks start, start + 1, ... of a run, tick i from t = i tick holding commands[i], v_sets[i] and
+    max_rates[i] (the held input: steering command, speed set-point, steering rate limit),
     as ``Simulation.advance`` runs them (the kinematic level's speed ramp set at each tick's start,
     ``kinematic.begin_tick``); after tick i the outputs of P_out into trace[i + 1] (``trace_row``;
     the kinematic level reports its inverse dynamics under V + V'). Stops after the first tick whose
@@ -59,13 +60,13 @@ def run(P, P_out, T, y0, commands, v_sets, tick, max_step, split, start, trace):
         t0 = i * tick
         if kinematic:
             y[n + 4] = (v_sets[i] - y[n + 3]) / tick
-        y1, used, split_at = advance_in(model_rhs, switches, P, T, y, commands[i], v_sets[i], t0, t0 + tick,
-                                        max_step, split, work)
+        y1, used, split_at = advance_in(model_rhs, switches, P, T, y, commands[i], v_sets[i], max_rates[i], t0,
+                                        t0 + tick, max_step, split, work)
         y[:] = y1
         nfev += used
         kinks += split_at
         law_input = y[n + 3] + y[n + 4] if kinematic else v_sets[i]
-        trace_row(P_out, y, commands[i], law_input, cart, sc, dy, trace[i + 1])
+        trace_row(P_out, y, commands[i], law_input, max_rates[i], cart, sc, dy, trace[i + 1])
         if not clear(P, y):
             return y, i + 1, nfev, kinks
     return y, commands.shape[0], nfev, kinks

@@ -14,4 +14,4 @@ from .base import *  # noqa: F401,F403
 from .entries import *  # noqa: F401,F403
 from .laws import *  # noqa: F401,F403
 from .motion import *  # noqa: F401,F403
-from .packing import column, pack  # noqa: F401
+from .packing import column, max_rate_of, pack  # noqa: F401

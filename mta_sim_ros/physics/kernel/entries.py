@@ -11,18 +11,18 @@ from .motion import drawbar_pulls, margin, outputs, rhs, switches
 
 
 @entry
-def rhs_of(P, y, command, v_set):
+def rhs_of(P, y, command, v_set, max_rate):
     """y' as a new array (dynamics.Model.rhs)."""
     dy = np.empty(y.shape[0])
-    rhs(P, y, command, v_set, dy, np.empty((0, REC)), no_mode())
+    rhs(P, y, command, v_set, max_rate, dy, np.empty((0, REC)), no_mode())
     return dy
 
 
 @entry
-def held_rhs_of(P, y, command, v_set, mode):
+def held_rhs_of(P, y, command, v_set, max_rate, mode):
     """y' with the branches ``mode`` held (see ``rhs``, ``mode_of``)."""
     dy = np.empty(y.shape[0])
-    rhs(P, y, command, v_set, dy, np.empty((0, REC)), mode)
+    rhs(P, y, command, v_set, max_rate, dy, np.empty((0, REC)), mode)
     return dy
 
 
@@ -38,23 +38,23 @@ def mode_of(P, y, command, v_set, rate_limited):
 
 
 @entry
-def outputs_of(P, y, command, v_set):
+def outputs_of(P, y, command, v_set, max_rate):
     """(cart n x OUT, scalars SCALARS) of ``outputs``."""
     n = int(P[H.n])
     cart = np.empty((n, OUT))
     sc = np.empty(SCALARS)
-    outputs(P, y, command, v_set, cart, sc, np.empty(y.shape[0]))
+    outputs(P, y, command, v_set, max_rate, cart, sc, np.empty(y.shape[0]))
     return cart, sc
 
 
 @entry
-def pulls_of(P, y, command, v_set):
+def pulls_of(P, y, command, v_set, max_rate):
     """(cart n x OUT, scalars) of ``outputs`` with the drawbar pulls' column (``drawbar_pulls``)."""
     n = int(P[H.n])
     cart = np.empty((n, OUT))
     sc = np.empty(SCALARS)
     dy = np.empty(y.shape[0])
-    outputs(P, y, command, v_set, cart, sc, dy)
+    outputs(P, y, command, v_set, max_rate, cart, sc, dy)
     drawbar_pulls(P, y, dy[n + 3], cart)
     return cart, sc
 
@@ -74,6 +74,6 @@ def switches_of(P, y, command, v_set):
 
 
 @entry
-def release_of(P, psi1, command):
+def release_of(P, psi1, command, max_rate):
     """``actuator_release``."""
-    return actuator_release(P, psi1, command)
+    return actuator_release(P, psi1, command, max_rate)

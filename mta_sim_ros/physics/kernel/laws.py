@@ -12,6 +12,7 @@ import math
 from ...jit import jitable
 from .base import (
     CART_SIZE,
+    C,
     DRAFT_SIZE,
     GOVERNOR,
     HEAD_SIZE,
@@ -29,10 +30,13 @@ from .base import (
 
 
 @jitable
-def steering_rate(P, psi1, command, branch):
-    """psi_1' = clip((clip(command, +-max_angle) - psi_1) / tau, +-max_rate) (actuator.py); with
-    ``branch`` HIGH the rate limit's side (+-max_rate), LOW the linear side, NATURAL as the state is."""
-    max_angle, max_rate = P[H.max_angle], P[H.max_rate]
+def steering_rate(P, psi1, command, max_rate, branch):
+    """The steering actuator (MODEL.md, Dynamics): psi_1' = clip((clip(command, +-max_angle) - psi_1)
+    / tau, +-max_rate), a first-order lag with a rate limit, as a hydraulic steering cylinder moves.
+    ``max_rate`` is an input held with the command (the train's own ``P[H.max_rate]``, or the rate an
+    ackermann_cmd asks for); with ``branch`` HIGH the rate limit's side (+-max_rate), LOW the linear
+    side, NATURAL as the state is."""
+    max_angle = P[H.max_angle]
     target = pymin(pymax(command, -max_angle), max_angle)
     if branch == NATURAL:
         return pymin(pymax((target - psi1) / P[H.time_constant], -max_rate), max_rate)
@@ -50,17 +54,56 @@ def held_abs(x, branch):
 
 
 @jitable
-def resistance_magnitude(P, rolling, first, count, axle_speed, branch):
-    """f m g plus the drafts D = F_i (A + B S + C S^2) W T at one axle, S = |speed| in km/h, summed
-    in the order of forces.CartResistance.force (``branch``: the sign of the speed, see held_abs)."""
-    total = rolling
+def resistance(P, k, axle_speed, branch):
+    """The resistance F_Bk at cart k's axle B_k, N, signed against its speed s'_Bk = ``axle_speed``
+    (MODEL.md, force laws): (f m g + sum of the drafts D = F_i (A + B S + C S^2) W T) tanh(s'_Bk / v0),
+    S = |s'_Bk| in km/h (ASABE D497), v0 the smoothing speed. ``branch``: the sign of the speed held
+    in the draft's |S| (see held_abs); the tanh is smooth and follows the state."""
+    b = HEAD_SIZE + CART_SIZE * k
+    first, count = int(P[b + C.draft_first]), int(P[b + C.draft_count])
+    total = P[b + C.rolling]
     base = HEAD_SIZE + CART_SIZE * int(P[H.n])
     for i in range(first, first + count):
         d = base + DRAFT_SIZE * i
         S = held_abs(axle_speed, branch) * MS_TO_KMH
         total += P[d + D.soil_factor] * (P[d + D.A] + P[d + D.B] * S + P[d + D.C] * S * S) * P[d + D.width] \
             * P[d + D.depth]
-    return total
+    return total * math.tanh(axle_speed / P[H.smoothing_speed])
+
+
+@jitable
+def held_branch(mode, i):
+    """The branch switching function i (``switch_layout``) is held on: NATURAL when no branch is
+    held (``mode`` empty) or the law has no such switch (i < 0)."""
+    return mode[1 + i] if mode.shape[0] > 0 and i >= 0 else NATURAL
+
+
+@jitable
+def traction_law(P, V, v_set, z, mode):
+    """The traction law of P (MODEL.md, force laws) at speed V, set-point v_set and governor
+    integral z: (F_A1, V', z', whether the law prescribes V'). Every level dispatches here: where
+    the law gives the force, V' is left to the level's equation of motion (returned 0); where it
+    prescribes V', F_A1 is left to the level's inverse dynamics (returned 0).
+
+        constant          F_A1 = force
+        governor          u = kp (v_set - V) + z, F_A1 = u clipped to +-traction_limit(V),
+                          z' = ki (v_set - V) + (F_A1 - u) / windup_time (back-calculation anti-windup)
+        prescribed_speed  V' = (v_set - V) / response_time clipped to +-max_accel; F_A1 then follows
+                          from the equation of motion (inverse dynamics: the level's own)
+
+    ``mode`` holds the non-smooth pieces on one branch each (``rhs``); empty: as the state is."""
+    law = int(P[H.law])
+    i_sat, i_limit, i_floor, i_accel, _ = switch_layout(P)
+    if law == PRESCRIBED:
+        a = (v_set - V) / P[H.response_time]
+        return 0.0, clip_held(a, P[H.max_accel], held_branch(mode, i_accel)), 0.0, True
+    if law == GOVERNOR:
+        error = v_set - V
+        u = P[H.kp] * error + z
+        limit = traction_limit(P, V, held_branch(mode, i_limit), held_branch(mode, i_floor))
+        traction = clip_held(u, limit, held_branch(mode, i_sat))
+        return traction, 0.0, P[H.ki] * error + (traction - u) / P[H.windup_time], False
+    return P[H.force], 0.0, 0.0, False
 
 
 @jitable
@@ -76,7 +119,7 @@ def clip_held(x, limit, branch):
 
 @jitable
 def traction_limit(P, V, limit_branch, floor_branch):
-    """Largest |F_A1| at speed V: adhesion, and engine power over speed (forces.traction_limit),
+    """Largest |F_A1| at speed V: adhesion, and engine power over speed,
     min(max_force, max_power / max(|V|, 0.1)); held branches: the power limit (HIGH) or the force
     limit (LOW) of the min, |V| (HIGH) or 0.1 (LOW) of the max."""
     if math.isinf(P[H.max_power]):
@@ -121,11 +164,11 @@ def branches(g, m, mode):
 
 
 @jitable
-def actuator_release(P, psi1, command):
+def actuator_release(P, psi1, command, max_rate):
     """Time (s) until the steering actuator leaves its rate limit, with the command held: inf when
     it is not rate-limited. While limited, psi_1 moves at +-max_rate exactly (a straight line), and
     the limit lets go where |target - psi_1| = tau max_rate."""
-    max_angle, max_rate, tau = P[H.max_angle], P[H.max_rate], P[H.time_constant]
+    max_angle, tau = P[H.max_angle], P[H.time_constant]
     target = pymin(pymax(command, -max_angle), max_angle)
     gap = abs(target - psi1)
     if not gap / tau > max_rate:
@@ -134,11 +177,11 @@ def actuator_release(P, psi1, command):
 
 
 @jitable
-def actuator_psi(P, psi0, command, release, T):
+def actuator_psi(P, psi0, command, max_rate, release, T):
     """psi_1 at T s into a tick that started at psi0, the command held: the actuator's closed-form
     motion (rate-limited at +-max_rate until ``release``, ``actuator_release``; then the first-order
     lag, exp(-t / tau) towards the clipped command)."""
-    max_angle, max_rate, tau = P[H.max_angle], P[H.max_rate], P[H.time_constant]
+    max_angle, tau = P[H.max_angle], P[H.time_constant]
     target = pymin(pymax(command, -max_angle), max_angle)
     if math.isinf(release):
         return target + (psi0 - target) * math.exp(-T / tau)

@@ -48,12 +48,26 @@ from .base import (
     pymax,
     wrap_angle,
 )
-from .laws import clip_held, resistance_magnitude, steering_rate, switch_layout, traction_limit
+from .laws import resistance, steering_rate, switch_layout, traction_law, traction_limit
 
 
 @jitable
-def rhs(P, y, command, v_set, dy, rec, mode):
-    """y' into ``dy``; returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's
+def next_psi(P, b, y, k, s, c):
+    """psi_{k+1} = th_k - th_{k+1} - beta_k, beta_k = atan2(lam_k sin psi_k, cos psi_k): the chain's
+    step from cart k (constants at P[b:]) to the next (chain.py; s, c = sin psi_k, cos psi_k)."""
+    return y[2 + k] - y[3 + k] - math.atan2(P[b + C.lam] * s, c)
+
+
+@jitable
+def next_speed2(P, b, s, c):
+    """(V_{k+1} / V_k)^2 = cos^2 psi_k + lam_k^2 sin^2 psi_k: the chain's step of the hitch speed."""
+    return c * c + P[b + C.lam2] * s * s
+
+
+@jitable
+def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
+    """y' into ``dy`` under the held input (steering command, speed set-point, steering rate limit);
+    returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's
     kapT, kapB, kapC, psi and resistance F_Bk go into its first REC columns. ``mode`` (empty, or
     one branch per switch: ``branches``) holds each non-smooth law on one of its branches, as a
     step between two kinks needs (outside its own region a held branch is the smooth extension).
@@ -66,19 +80,14 @@ def rhs(P, y, command, v_set, dy, rec, mode):
     law = int(P[H.law])
     forces_on = law != KINEMATIC
     held = mode.shape[0] > 0
-    i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P)
+    i_speed = switch_layout(P)[4]
     psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
-    psi_rate = steering_rate(P, psi1, command, mode[0] if held else NATURAL)
-    v0 = P[H.smoothing_speed]
+    psi_rate = steering_rate(P, psi1, command, max_rate, mode[0] if held else NATURAL)
 
-    mass = 0.0
-    mass_rate = 0.0
-    generalized_resistance = 0.0
+    mass, mass_rate, generalized_resistance = 0.0, 0.0, 0.0
     k_val, k_dot = 1.0, 0.0  # kap_1 = 1
     p_val, p_dot = psi1, psi_rate
-    theta_rate_prev = 0.0
-    beta_dot_prev = 0.0
-    last = n - 1
+    theta_rate_prev, beta_dot_prev = 0.0, 0.0
     for k in range(n):
         b = HEAD_SIZE + CART_SIZE * k
         l_k = P[b + C.length]
@@ -89,64 +98,44 @@ def rhs(P, y, command, v_set, dy, rec, mode):
             p_dot = theta_rate_prev - theta_rate - beta_dot_prev
         s_dot, c_dot = c * p_dot, -s * p_dot
         b_val = k_val * c  # kapB_k
-        cc = c * c
         if forces_on:
             mu2 = P[b + C.mu2]
             t_dot = (k_dot * s + k_val * s_dot) / l_k
-            rc = math.sqrt(cc + mu2 * s * s)  # s'_Ck / V_k; (mu2 * s) * s rounds as chain's mu * mu * s * s
+            rc = math.sqrt(c * c + mu2 * s * s)  # s'_Ck / V_k; (mu2 * s) * s rounds as chain's mu * mu * s * s
             rc_dot = (c * c_dot + mu2 * s * s_dot) / rc
             kc_val = k_val * rc  # kapC_k
             kc_dot = k_dot * rc + k_val * rc_dot
             m, J = P[b + C.mass], P[b + C.inertia]
             mass += m * kc_val * kc_val + J * t_val * t_val
             mass_rate += 2.0 * (m * kc_val * kc_dot + J * t_val * t_dot)
-            axle_speed = b_val * V
-            count = int(P[b + C.draft_count])
             branch = NATURAL
-            if held and i_speed >= 0 and count > 0:
+            if held and i_speed >= 0 and P[b + C.draft_count] > 0:
                 branch = mode[1 + i_speed]
                 i_speed += 1
-            magnitude = resistance_magnitude(P, P[b + C.rolling], int(P[b + C.draft_first]), count, axle_speed,
-                                             branch)
-            resistance = magnitude * math.tanh(axle_speed / v0)
-            generalized_resistance += resistance * b_val
+            force = resistance(P, k, b_val * V, branch)
+            generalized_resistance += force * b_val
             if rec.shape[0]:
-                rec[k, KAPC], rec[k, RES] = kc_val, resistance
+                rec[k, KAPC], rec[k, RES] = kc_val, force
                 rec[k, KAPT_DOT], rec[k, KAPB_DOT] = t_dot, k_dot * c + k_val * c_dot
         if rec.shape[0]:
             rec[k, KAPT], rec[k, KAPB], rec[k, PSI] = t_val, b_val, p_val
         dy[2 + k] = theta_rate
-        if k < last:  # on to cart k + 1: V_{k+1} = V_k rl_k, psi_{k+1} = th_k - th_{k+1} - beta_k
-            lam, lam2 = P[b + C.lam], P[b + C.lam2]
-            rl2 = cc + lam2 * s * s
+        if k < n - 1:  # on to cart k + 1: V_{k+1} = V_k rl_k, psi_{k+1} (next_psi)
+            rl2 = next_speed2(P, b, s, c)
             rl = math.sqrt(rl2)
-            rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
-            beta = math.atan2(lam * s, c)
-            beta_dot_prev = lam * p_dot / rl2  # d/dt atan2(lam s, c)
+            rl_dot = (c * c_dot + P[b + C.lam2] * s * s_dot) / rl
+            beta_dot_prev = P[b + C.lam] * p_dot / rl2  # d/dt atan2(lam s, c)
             k_val, k_dot = k_val * rl, k_dot * rl + k_val * rl_dot
-            p_val = y[2 + k] - y[3 + k] - beta
+            p_val = next_psi(P, b, y, k, s, c)
             theta_rate_prev = theta_rate
 
-    traction = 0.0
-    governor_rate = 0.0
-    if law == KINEMATIC:
-        acceleration = z  # the ramp slope of this tick (kinematic.py)
-    else:
+    traction, acceleration, governor_rate = 0.0, z, 0.0  # kinematic: z is the ramp slope (kinematic.py)
+    if forces_on:
+        traction, acceleration, governor_rate, prescribed = traction_law(P, V, v_set, z, mode)
         velocity_term = 0.5 * mass_rate * V
-        if law == PRESCRIBED:  # forces.prescribed_acceleration, then inverse dynamics
-            a = (v_set - V) / P[H.response_time]
-            acceleration = clip_held(a, P[H.max_accel], mode[1 + i_accel] if held and i_accel >= 0 else NATURAL)
+        if prescribed:  # the force by inverse dynamics
             traction = mass * acceleration + generalized_resistance + velocity_term
-        else:
-            if law == GOVERNOR:  # forces.governor
-                error = v_set - V
-                u = P[H.kp] * error + z
-                limit = traction_limit(P, V, mode[1 + i_limit] if held and i_limit >= 0 else NATURAL,
-                                       mode[1 + i_floor] if held and i_floor >= 0 else NATURAL)
-                traction = clip_held(u, limit, mode[1 + i_sat] if held and i_sat >= 0 else NATURAL)
-                governor_rate = P[H.ki] * error + (traction - u) / P[H.windup_time]
-            else:
-                traction = P[H.force]
+        else:  # M V' = F_A1 - sum F_Bk kapB_k - R
             acceleration = (traction - generalized_resistance - velocity_term) / mass
     course = y[2] + psi1  # direction of v_A1
     dy[0] = V * math.cos(course)
@@ -166,9 +155,7 @@ def margin(P, y):
     p_val = y[n + 2]
     for k in range(n - 1):
         b = HEAD_SIZE + CART_SIZE * k
-        lam = P[b + C.lam]
-        beta = math.atan2(lam * math.sin(p_val), math.cos(p_val))
-        p_val = y[2 + k] - y[3 + k] - beta  # psi_{k+1}
+        p_val = next_psi(P, b, y, k, math.sin(p_val), math.cos(p_val))  # psi_{k+1}
         phi = wrap_angle(y[2 + k] - y[3 + k])
         m = min(P[b + CART_SIZE + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(p_val))
         if m < best:
@@ -190,11 +177,11 @@ def clear(P, y):
 
 
 @jitable
-def outputs(P, y, command, v_set, cart, sc, dy):
+def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
     """Every reported quantity of state y into ``cart`` (n x OUT) and ``sc`` (SCALARS): the points
     of geometry.cart_points, the chain's factors times V, the forces, and the jackknife margin."""
     n = int(P[H.n])
-    traction, mass = rhs(P, y, command, v_set, dy, cart, no_mode())
+    traction, mass = rhs(P, y, command, v_set, max_rate, dy, cart, no_mode())
     V = y[n + 3]
     ax, ay = y[0], y[1]
     res_power = 0.0
@@ -293,12 +280,12 @@ def switches(P, y, command, v_set, g):
                 g[m] = k_val * c * V  # s'_Bk
                 m += 1
             if k < n - 1:
-                k_val = k_val * math.sqrt(c * c + P[b + C.lam2] * s * s)
-                p_val = y[2 + k] - y[3 + k] - math.atan2(P[b + C.lam] * s, c)
+                k_val = k_val * math.sqrt(next_speed2(P, b, s, c))
+                p_val = next_psi(P, b, y, k, s, c)
     return m
 
 
 @jitable
-def model_rhs(P, t, y, command, v_set, dy, rec, mode):
+def model_rhs(P, t, y, command, v_set, max_rate, dy, rec, mode):
     """The stepping routine's form of ``rhs`` (t does not enter: the input is held)."""
-    rhs(P, y, command, v_set, dy, rec, mode)
+    rhs(P, y, command, v_set, max_rate, dy, rec, mode)

@@ -32,3 +32,8 @@ def column(P: np.ndarray, name: str) -> tuple[float, ...]:
     """One CART field of every cart, read from the packed array (for the reference code)."""
     n, i = int(P[H.n]), getattr(C, name)
     return tuple(float(P[HEAD_SIZE + CART_SIZE * k + i]) for k in range(n))
+
+
+def max_rate_of(P: np.ndarray, max_rate: float | None = None) -> float:
+    """The steering rate limit held as an input: ``max_rate``, or None for the train's own."""
+    return float(P[H.max_rate]) if max_rate is None else float(max_rate)
