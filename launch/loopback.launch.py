@@ -2,8 +2,8 @@
 
 With ``loopback:=true`` (the default) every process started afterwards keeps DDS on this host:
 discovery on localhost only and the Fast DDS profile config/fastdds_loopback.xml, which binds the
-sockets to 127.0.0.1 (mta_sim_ros/loopback.py says which variables; the README, "The network
-rule", what they do), and no static peers elsewhere. sim.launch.py, rviz.launch.py and
+sockets to 127.0.0.1 (mta_sim_ros/node/loopback.py says which variables; docs/node.md, "The
+network rule", what they do), and no static peers elsewhere. sim.launch.py, rviz.launch.py and
 foxglove.launch.py include it first; an include does not scope the environment, so the settings
 hold for the rest of the including file.
 """
