@@ -110,7 +110,7 @@ def general() -> list[str]:
         "(`max_angle_deg: 40`); giving both forms is a fault.",
         "- Numbers may be ints or floats (`1e-8` is read as a float, unlike plain YAML 1.1) and must be finite.",
         "- A key that is not a field of its mapping is a fault (the message names the closest field); a key given "
-        "twice is a fault.",
+        "twice is a fault. A choice (`law: Governor`, `method: rk4`) is matched ignoring case.",
         "- A fault is one line, `FIELD: VALUE in LOCATION of FILE must be RULE`, e.g. "
         "`mass: -3 in carts[1] of trains/x.yaml must be > 0 and <= 1e+07 kg`; LOCATION is a path into the file "
         "(`top level`, `carts[1]` with 0-based indices, `forces.traction`). `mta check FILE...` checks files "
