@@ -3,7 +3,7 @@
 A :class:`Train` is the mechanical scheme (a list of carts) plus the lists of force elements,
 exactly what the KiDiM method takes as input (MODEL.md). A :class:`Scene` says what happens to a
 train: start pose, steering and speed inputs, duration and integrator. Both are frozen: the
-changing state lives in a numpy array (see ``model/state.py``), as MuJoCo splits model from data.
+changing state lives in a numpy array (``dynamics.StateLayout``), as MuJoCo splits model from data.
 
 Symbols (MODEL.md):
     length        l_k  distance from the front point A_k to the rear axle centre B_k, m (> 0)
@@ -11,7 +11,8 @@ Symbols (MODEL.md):
     com_offset    c_k  distance from B_k forward to the centre of mass C_k, m
     mass          m_k  kg;  yaw_inertia  J_k  about C_k, kg m^2
 
-These classes are built by ``model/loader.py`` from YAML; that is where every rule is checked.
+These classes are built by ``loader.py`` from YAML, every field read through its declaration in
+``schema.py``; that is where every rule is checked.
 """
 from __future__ import annotations
 
