@@ -125,7 +125,7 @@ def main(args) -> int:
     paths = sorted(Path(args.scenes).glob("*.yaml"))
     lines = header_lines("Fidelity levels: error against the slip level and cost", args) + [
              "Reference: the slip level (the highest) with each train's default cornering stiffness, "
-             "C_alpha = 5/rad x static axle load (model/slip.py, CORNERING_COEFFICIENT). Errors: poses = "
+             "C_alpha = 5/rad x static axle load (physics/slip.py, CORNERING_COEFFICIENT). Errors: poses = "
              "largest distance between the same axle centre (B_k or A_1), m; speed = largest |dV|, m/s; "
              "power = RMS(dN)/RMS(N); hitch = largest |dphi|, rad. Cost = CPU s per simulated s (least of "
              f"{args.repeats} runs; kinematic and dynamic with the scene's integrator, slip with "

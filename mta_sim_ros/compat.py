@@ -1,6 +1,6 @@
 """The library versions the package runs on, their differences in one place. No physics.
 
-Two Python stacks are tested (README, "Dependencies, and why"): Ubuntu 24.04's, which a ROS 2
+Two Python stacks are tested (docs/dependencies.md): Ubuntu 24.04's, which a ROS 2
 Jazzy install uses (numpy 1.26.4, scipy 1.11.4, matplotlib 3.6.3, numba 0.59.1:
 constraints-noble.txt, ``make test-noble``), and current PyPI's (requirements.txt, ``make test``).
 Where the newer libraries renamed or added what the package uses, the package calls the name

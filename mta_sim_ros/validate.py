@@ -2,7 +2,7 @@
 finite numbers and ranges, the bounds that keep a run finite, a YAML reader that cannot be made
 to hang or exhaust memory, unknown names with the closest known one, and output paths.
 
-The bottom room: it imports nothing of the package, so the loader (model/), the node's
+The bottom room: it imports nothing of the package, so the loader (physics/), the node's
 parameters (params.py), the bag readers (runlog.py) and the commands (tools/, cli.py) all take
 their rules from here. Each fault is an :class:`InputError` whose message is one line,
 
