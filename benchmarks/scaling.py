@@ -43,6 +43,7 @@ from pathlib import Path
 
 from mta_sim_ros.validate import COUNT, DURATION, MAX_TICKS, Range, number_arg, output_file, path_arg
 
+from . import scaling_report
 from .common import BENCHMARKS, header_lines, log, ros_env
 from .stages import STAGES
 
@@ -55,8 +56,6 @@ ENDLESS = MAX_TICKS / max(RATES)
 METHOD, STEP = "rk4", 0.01  # the node's default (config/sim.yaml, scenes)
 STEER_PERIOD = 60.0  # s
 CHECKPOINT = 10.0  # s of simulated time between the long run's samples
-TARGET_SHARE = 0.02  # the issue: the default method and step under 2 % of the 100 Hz tick
-TARGET_RSS_MB = 200.0
 
 
 def add_arguments(p) -> None:
@@ -332,7 +331,7 @@ def main(args) -> int:
     if args.replot:  # the figures and Markdown again from the raw figures of a run (``<out>.json``)
         raw = json.loads(Path(args.replot).read_text())
         raw["rhs"] = {int(k): v for k, v in raw["rhs"].items()}
-        return write_scaling_report(Path(args.out), raw, time.monotonic())
+        return scaling_report.write(Path(args.out), raw, time.monotonic())
     quick = args.quick
     carts, rates = ((1, 3, 10), (100.0,)) if quick else (CARTS, RATES)
     ticks, paced_ticks = (300, 100) if quick else (args.ticks, args.paced_ticks)
@@ -364,16 +363,7 @@ def main(args) -> int:
            "head": header_lines("Benchmark: scaling, long runs, memory", args)}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).with_suffix(".json").write_text(json.dumps(raw))
-    return write_scaling_report(Path(args.out), raw, started)
-
-
-def write_scaling_report(out: Path, raw: dict, started: float) -> int:
-    from .scaling_report import figures, report
-
-    pngs = figures(raw["cases"], raw["long"], out.parent, out.stem)
-    out.write_text("\n".join(report(raw, pngs)) + "\n")
-    log(f"wrote {out} and {', '.join(pngs)} in {time.monotonic() - started:.0f} s")
-    return 0
+    return scaling_report.write(Path(args.out), raw, started)
 
 
 def _child_main(argv: list[str]) -> int:

@@ -3,10 +3,22 @@ tick against carts and rate, paced and with the collector frozen; the long run's
 simulated second and memory; PNG figures beside the report."""
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
-from .scaling import CHECKPOINT, TARGET_RSS_MB, TARGET_SHARE
+from .common import log
 from .stages import STAGES
+
+TARGET_SHARE = 0.02  # the issue: the default method and step under 2 % of the 100 Hz tick
+TARGET_RSS_MB = 200.0
+
+
+def write(out: Path, raw: dict, started: float) -> int:
+    """The report ``out`` and its figures beside it, from a run's raw figures (scaling.main)."""
+    pngs = figures(raw["cases"], raw["long"], out.parent, out.stem)
+    out.write_text("\n".join(report(raw, pngs)) + "\n")
+    log(f"wrote {out} and {', '.join(pngs)} in {time.monotonic() - started:.0f} s")
+    return 0
 
 
 def window_costs(samples, edges) -> list[tuple[float, float, float, float]]:
@@ -91,7 +103,8 @@ def figures(cases, long, out_dir: Path, stem: str) -> list[str]:
         ax.plot(t, wall, lw=0.6, color="C1", label="wall")
         ax.plot(t, cpu, lw=0.6, color="C0", label="process CPU")
         ax.set_ylim(0, sorted(wall)[int(0.99 * (len(wall) - 1))] * 1.3)
-        ax.set_xlabel("simulated time, s"); ax.set_ylabel(f"cost per simulated s, ms (per {CHECKPOINT:g} s window)")
+        window = samples[1][0] - samples[0][0]  # the long run's sampling interval (scaling.CHECKPOINT)
+        ax.set_xlabel("simulated time, s"); ax.set_ylabel(f"cost per simulated s, ms (per {window:g} s window)")
         ax.set_title("long run, default train, 100 Hz, MCAP bag")
         ax.grid(True, alpha=0.3); ax.legend(fontsize=8)
         ax = axes[1]
@@ -113,8 +126,17 @@ def figures(cases, long, out_dir: Path, stem: str) -> list[str]:
 def report(raw: dict, pngs: list[str]) -> list[str]:
     """The report's lines from a run's raw figures (what scaling.main saves as <out>.json)."""
     cases, paced, frozen, rhs, long = (raw[k] for k in ("cases", "paced", "frozen", "rhs", "long"))
-    ms = lambda s: f"{s * 1e3:.3f}"  # noqa: E731
-    L = raw["head"] + [
+    return (raw["head"] + introduction(pngs) + grid(cases) + linearity(cases, rhs)
+            + targets(cases, paced, frozen, long) + paced_ticks(paced) + the_tail(cases, frozen) + long_run(long, pngs))
+
+
+def ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3f}"
+
+
+def introduction(pngs: list[str]) -> list[str]:
+    """What is measured, and the definitions."""
+    return [
         "Offline (no DDS): the node's own tick, `session.RunSession.tick`, on a scene file written for each "
         "train, with the node's default parameters (see the docstring of `benchmarks/scaling.py`): "
         "advance (rk4, + validity check), outputs, the messages' CDR bytes (+ markers at 10 Hz), publish (a "
@@ -128,12 +150,15 @@ def report(raw: dict, pngs: list[str]) -> list[str]:
         "other processes (this 2-core machine is shared: wall-time tails are mostly other processes' work). "
         "**sustained RTF** := tick / mean thread CPU time per tick (simulated seconds per CPU second). "
         "**marker ticks**: every publish_rate / 10 Hz-th tick also encodes the MarkerArray.", "",
-        f"![tick compute and max real-time factor against carts]({pngs[0]})", "",
-        "## (a) Tick compute time against carts and publish rate (ticks back to back)", "",
-        "| carts | rate, Hz | p50, ms | p99, ms | p99.9, ms | max, ms | p99 / tick | max RTF | max RTF by CPU | "
-        "sustained RTF | CPU p50, ms | CPU p99, ms | CPU p99 without marker ticks, ms | marker tick p50, ms |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
+        f"![tick compute and max real-time factor against carts]({pngs[0]})", ""]
+
+
+def grid(cases) -> list[str]:
+    """(a): the tick against carts and rate, and where it goes."""
+    L = ["## (a) Tick compute time against carts and publish rate (ticks back to back)", "",
+         "| carts | rate, Hz | p50, ms | p99, ms | p99.9, ms | max, ms | p99 / tick | max RTF | max RTF by CPU | "
+         "sustained RTF | CPU p50, ms | CPU p99, ms | CPU p99 without marker ticks, ms | marker tick p50, ms |",
+         "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for c in sorted(cases, key=lambda c: (c["rate"], c["n"])):
         w = c["wall"]
         L.append(f"| {c['n']} | {c['rate']:g} | {ms(w['p50'])} | {ms(w['p99'])} | {ms(w['p99.9'])} | {ms(w['max'])} | "
@@ -147,11 +172,14 @@ def report(raw: dict, pngs: list[str]) -> list[str]:
     resets = sum(c["resets"] for c in cases)
     L += ["", f"{cases[0]['ticks']} timed ticks per case after a warm-up; {resets} jackknife resets in all cases; "
               f"model level: {', '.join(sorted({c['level'] for c in cases}))}."]
+    return L
 
-    # linearity at 100 Hz (or the one rate)
+
+def linearity(cases, rhs) -> list[str]:
+    """The tick's CPU time and the right-hand side's against carts, at 100 Hz (or the one rate)."""
     rate = 100.0 if any(c["rate"] == 100.0 for c in cases) else cases[0]["rate"]
     cs = sorted((c for c in cases if c["rate"] == rate), key=lambda c: c["n"])
-    L += ["", "## Linear in the number of carts", ""]
+    L = ["", "## Linear in the number of carts", ""]
     if len(cs) >= 3:
         a, b, r = linear_fit([c["n"] for c in cs], [c["cpu"]["mean"] * 1e6 for c in cs])
         a2, b2, r2 = linear_fit(list(rhs), list(rhs.values()))
@@ -161,7 +189,12 @@ def report(raw: dict, pngs: list[str]) -> list[str]:
               + ", ".join(f"n = {n}: {v:.1f}" for n, v in rhs.items())
               + f"; fit {a2:.2f} us + {b2:.3f} us x n (largest residual {100 * r2:.0f} %). "
                 f"rk4 with step 0.01 s evaluates it {cs[0]['nfev_per_tick']:.0f} times per 100 Hz tick."]
-    L += ["", "## Targets", "", "| target | measured | |", "|---|---|---|"]
+    return L
+
+
+def targets(cases, paced, frozen, long) -> list[str]:
+    """The issue's targets, met or missed."""
+    L = ["", "## Targets", "", "| target | measured | |", "|---|---|---|"]
     d100 = next((c for c in cases if c["n"] == 3 and c["rate"] == 100.0), None)
     p3 = next((c for c in paced if c["n"] == 3), None)
     if d100:
@@ -197,57 +230,74 @@ def report(raw: dict, pngs: list[str]) -> list[str]:
             L.append("| cost per simulated second does not grow | CPU ms per simulated s: "
                      + ", ".join(f"{t0:g}-{t1:g} s: {c:.1f}" for t0, t1, c, _ in wins)
                      + f" | {'met' if last[2] <= 1.1 * min(w[2] for w in wins[1:]) else 'see below'} |")
-    if paced:
-        L += ["", "## Paced ticks (one per 10 ms of wall time, as the node's timer runs them)", "",
-              "| carts | p50, ms | p99, ms | p99.9, ms | max, ms | CPU p50, ms | CPU p99 without marker ticks, ms | "
-              + " p50, us | ".join(STAGES) + " p50, us |",
-              "|---:|---:|---:|---:|---:|---:|---:|" + "---:|" * len(STAGES)]
-        for c in paced:
-            w, st = c["wall"], c["stages_median"]
-            L.append(f"| {c['n']} | {ms(w['p50'])} | {ms(w['p99'])} | {ms(w['p99.9'])} | {ms(w['max'])} | "
-                     f"{ms(c['cpu']['p50'])} | {ms(c['cpu_plain_p99'])} | "
-                     + " | ".join(f"{st[s] * 1e6:.0f}" for s in STAGES) + " |")
-    if frozen:
-        L += ["", "## The tail: garbage collection and markers", "",
-              "The same back-to-back ticks at 100 Hz, as the node does them and with `gc.collect(); gc.freeze()` "
-              "once after the warm-up (thread CPU time per tick, ms):", "",
-              "| carts | gc | p50 | p99 | p99.9 | max | p99 without marker ticks | marker tick p50 |",
-              "|---:|---|---:|---:|---:|---:|---:|---:|"]
-        for f in frozen:
-            base = next((c for c in cases if c["n"] == f["n"] and c["rate"] == f["rate"]), None)
-            for c, label in ((base, "collector as is"), (f, "frozen after start-up (as the node does)")):
-                if c is not None:
-                    L.append(f"| {c['n']} | {label} | {ms(c['cpu']['p50'])} | {ms(c['cpu']['p99'])} | "
-                             f"{ms(c['cpu']['p99.9'])} | {ms(c['cpu']['max'])} | {ms(c['cpu_plain_p99'])} | "
-                             f"{ms(c['marker_tick_median'])} |")
-        L += ["", "Why: a full (generation 2) collection walks every tracked object, tens of thousands after "
-                  "importing numpy, scipy and the message types; frozen, it walks only what the run made since, and "
-                  "the node freezes its start-up objects (`node.main`). The profile's garbage-collection column "
-                  "(`stages.py`, `gc.callbacks`) times the collections inside ticks."]
-    if long:
-        s = long["samples"]
-        L += ["", "## (b) Cost per simulated second against run length; (c) memory", "",
-              f"![cost per simulated second and memory over the long run]({pngs[1]})", "",
-              f"One child process: default train, 100 Hz, the session of (a) with its MCAP bag (no profile), {long['duration']:g} s "
-              f"simulated; {long['messages']} messages, bag {long['bag_bytes'] / 1e6:.1f} MB (deleted after).", "",
-              "| from, s | to, s | process CPU per simulated s, ms | wall per simulated s, ms |", "|---:|---:|---:|---:|"]
-        edges = [0.0, 10.0, 100.0, 1000.0, long["duration"]]
-        for t0, t1, c, w in window_costs(s, sorted(set(e for e in edges if e <= long["duration"]))):
-            L.append(f"| {t0:g} | {t1:g} | {c:.2f} | {w:.2f} |")
-        total_cpu = s[-1][1] - s[0][1]
-        after = next((x for x in s if x[0] >= min(100.0, long["duration"] / 2)), s[1])
-        growth = (s[-1][3] - after[3]) / 1024 / max(1e-9, (s[-1][0] - after[0]) / 3600.0)
-        L += ["", f"Whole run: {total_cpu:.1f} s CPU for {long['duration']:g} s simulated "
-                  f"({1e3 * total_cpu / long['duration']:.2f} ms per simulated s, sustained real-time factor "
-                  f"{long['duration'] / total_cpu:.0f}).",
-              f"Resident memory: {long['rss_start_kb'] / 1024:.1f} MB at the child's start (interpreter), "
-              f"{s[1][3] / 1024:.1f} MB after {s[1][0]:g} s simulated (numpy, scipy, rclpy message types, the "
-              f"model), {s[-1][3] / 1024:.1f} MB at the end; peak VmHWM {long['vm_hwm_kb'] / 1024:.1f} MB "
-              f"(ru_maxrss {long['ru_maxrss_kb'] / 1024:.1f} MB). From {after[0]:g} s to the end it grew "
-              f"{growth:.1f} MB per simulated hour: the MCAP writer (mcap.writer.Writer) keeps one ChunkIndex "
-              f"per written chunk (64 KiB uncompressed) in memory for the summary it writes at close "
-              f"(a separate tracemalloc probe: +0.8 MB over 400 s simulated, 0.47 MB of it allocated in "
-              f"mcap/writer.py); bounded by the bag, which the node closes at every reset. Nothing else grows; "
-              f"the cost per simulated second does not."]
     return L
 
+
+def paced_ticks(paced) -> list[str]:
+    """The ticks one per 10 ms, as the node's timer runs them."""
+    if not paced:
+        return []
+    L = ["", "## Paced ticks (one per 10 ms of wall time, as the node's timer runs them)", "",
+         "| carts | p50, ms | p99, ms | p99.9, ms | max, ms | CPU p50, ms | CPU p99 without marker ticks, ms | "
+         + " p50, us | ".join(STAGES) + " p50, us |",
+         "|---:|---:|---:|---:|---:|---:|---:|" + "---:|" * len(STAGES)]
+    for c in paced:
+        w, st = c["wall"], c["stages_median"]
+        L.append(f"| {c['n']} | {ms(w['p50'])} | {ms(w['p99'])} | {ms(w['p99.9'])} | {ms(w['max'])} | "
+                 f"{ms(c['cpu']['p50'])} | {ms(c['cpu_plain_p99'])} | "
+                 + " | ".join(f"{st[s] * 1e6:.0f}" for s in STAGES) + " |")
+    return L
+
+
+def the_tail(cases, frozen) -> list[str]:
+    """The slowest ticks with the collector as it is and frozen after start-up."""
+    if not frozen:
+        return []
+    L = ["", "## The tail: garbage collection and markers", "",
+         "The same back-to-back ticks at 100 Hz, as the node does them and with `gc.collect(); gc.freeze()` "
+         "once after the warm-up (thread CPU time per tick, ms):", "",
+         "| carts | gc | p50 | p99 | p99.9 | max | p99 without marker ticks | marker tick p50 |",
+         "|---:|---|---:|---:|---:|---:|---:|---:|"]
+    for f in frozen:
+        base = next((c for c in cases if c["n"] == f["n"] and c["rate"] == f["rate"]), None)
+        for c, label in ((base, "collector as is"), (f, "frozen after start-up (as the node does)")):
+            if c is not None:
+                L.append(f"| {c['n']} | {label} | {ms(c['cpu']['p50'])} | {ms(c['cpu']['p99'])} | "
+                         f"{ms(c['cpu']['p99.9'])} | {ms(c['cpu']['max'])} | {ms(c['cpu_plain_p99'])} | "
+                         f"{ms(c['marker_tick_median'])} |")
+    L += ["", "Why: a full (generation 2) collection walks every tracked object, tens of thousands after "
+              "importing numpy, scipy and the message types; frozen, it walks only what the run made since, and "
+              "the node freezes its start-up objects (`node.main`). The profile's garbage-collection column "
+              "(`stages.py`, `gc.callbacks`) times the collections inside ticks."]
+    return L
+
+
+def long_run(long, pngs: list[str]) -> list[str]:
+    """(b) and (c): the long run's cost per simulated second and its memory."""
+    if not long:
+        return []
+    s = long["samples"]
+    L = ["", "## (b) Cost per simulated second against run length; (c) memory", "",
+         f"![cost per simulated second and memory over the long run]({pngs[1]})", "",
+         f"One child process: default train, 100 Hz, the session of (a) with its MCAP bag (no profile), {long['duration']:g} s "
+         f"simulated; {long['messages']} messages, bag {long['bag_bytes'] / 1e6:.1f} MB (deleted after).", "",
+         "| from, s | to, s | process CPU per simulated s, ms | wall per simulated s, ms |", "|---:|---:|---:|---:|"]
+    edges = [0.0, 10.0, 100.0, 1000.0, long["duration"]]
+    for t0, t1, c, w in window_costs(s, sorted(set(e for e in edges if e <= long["duration"]))):
+        L.append(f"| {t0:g} | {t1:g} | {c:.2f} | {w:.2f} |")
+    total_cpu = s[-1][1] - s[0][1]
+    after = next((x for x in s if x[0] >= min(100.0, long["duration"] / 2)), s[1])
+    growth = (s[-1][3] - after[3]) / 1024 / max(1e-9, (s[-1][0] - after[0]) / 3600.0)
+    L += ["", f"Whole run: {total_cpu:.1f} s CPU for {long['duration']:g} s simulated "
+              f"({1e3 * total_cpu / long['duration']:.2f} ms per simulated s, sustained real-time factor "
+              f"{long['duration'] / total_cpu:.0f}).",
+          f"Resident memory: {long['rss_start_kb'] / 1024:.1f} MB at the child's start (interpreter), "
+          f"{s[1][3] / 1024:.1f} MB after {s[1][0]:g} s simulated (numpy, scipy, rclpy message types, the "
+          f"model), {s[-1][3] / 1024:.1f} MB at the end; peak VmHWM {long['vm_hwm_kb'] / 1024:.1f} MB "
+          f"(ru_maxrss {long['ru_maxrss_kb'] / 1024:.1f} MB). From {after[0]:g} s to the end it grew "
+          f"{growth:.1f} MB per simulated hour: the MCAP writer (mcap.writer.Writer) keeps one ChunkIndex "
+          f"per written chunk (64 KiB uncompressed) in memory for the summary it writes at close "
+          f"(a separate tracemalloc probe: +0.8 MB over 400 s simulated, 0.47 MB of it allocated in "
+          f"mcap/writer.py); bounded by the bag, which the node closes at every reset. Nothing else grows; "
+          f"the cost per simulated second does not."]
+    return L
