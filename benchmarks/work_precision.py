@@ -295,18 +295,22 @@ def figure(results: dict, mode: str, out_dir: Path, default_method: str) -> str:
 
 
 def report(args, results, refdiff, summary, figs, jit_note, repeats) -> list[str]:
+    lines = setup(args, results, bool(refdiff), figs, jit_note, repeats)
+    if refdiff:
+        lines += [f"## Reference cross-check (Radau {CHECK_TOL:g} against DOP853 {REF_TOL:g}, node mode)", "",
+                  "| scene | E_pos (m) | E_final (m) | E_head (rad) | E_power |", "|---|---:|---:|---:|---:|"]
+        lines += [f"| {lab} | {d['pos']:.2e} | {d['final']:.2e} | {d['head']:.2e} | {d['power']:.2e} |"
+                  for lab, d in refdiff.items()]
+        lines.append("")
+    return lines + headline(summary, "rk4" + COMPILED if jit_note else "rk4") + all_runs(results)
+
+
+def setup(args, results, cross_checked: bool, figs, jit_note, repeats) -> list[str]:
+    """What was run and how it was measured."""
     from .runs import SCENES
 
     fixed = fixed_methods()
     tick = 1.0 / args.rate
-    default_method = "rk4" + COMPILED if jit_note else "rk4"
-
-    def num(x, f="{:.3g}"):
-        return "n/a" if x is None or not math.isfinite(x) else f.format(x)
-
-    def ratio(a, b):
-        return num(a / b if a and b and math.isfinite(b) else None, "x{:.1f}")
-
     lines = ["## Setup", "", f"- ticks of {1e3 * tick:g} ms ({args.rate:g} Hz); scenes:"]
     lines += [f"  - **{lab}**: `config/{p}` ({w})" for lab, p, w in SCENES if lab in results]
     lines += [
@@ -323,7 +327,7 @@ def report(args, results, refdiff, summary, figs, jit_note, repeats) -> list[str
         "with the held command; free mode: one call (which is the free RK45 curve).",
         f"- reference: DOP853 at rtol = atol = {REF_TOL:g} under the same inputs (node mode: kinks split); "
         + (f"cross-check: Radau at rtol = atol = {CHECK_TOL:g} (node mode). Their difference bounds what any error "
-           "below it means." if refdiff else "no cross-check (--quick)."),
+           "below it means." if cross_checked else "no cross-check (--quick)."),
         "- sweeps: fixed steps tick / k (k by the method's order); tolerances rtol with atol = rtol / 100.",
         f"- cost: CPU time (`time.process_time`) per simulated second, minimum of {repeats} repeats for the runs "
         f"cheaper than {CHEAP:g} CPU s/s (one run for the costlier ones), the configurations taking turns in each "
@@ -331,25 +335,32 @@ def report(args, results, refdiff, summary, figs, jit_note, repeats) -> list[str
         "- errors: `E_pos`, `E_final`, `E_head`, `E_power` as defined in `benchmarks/runs.py` "
         "(hitch points A_1 .. A_n and the rear hitch; headings; traction power N = F_A1 V, relative).",
         "", f"![work-precision, node mode]({figs['node']})", "", f"![work-precision, free mode]({figs['free']})", ""]
-    if refdiff:
-        lines += [f"## Reference cross-check (Radau {CHECK_TOL:g} against DOP853 {REF_TOL:g}, node mode)", "",
-                  "| scene | E_pos (m) | E_final (m) | E_head (rad) | E_power |", "|---|---:|---:|---:|---:|"]
-        lines += [f"| {lab} | {d['pos']:.2e} | {d['final']:.2e} | {d['head']:.2e} | {d['power']:.2e} |"
-                  for lab, d in refdiff.items()]
-        lines.append("")
-    lines += ["## Headline", "",
-              f"| scene | node default {default_method} 0.01 s: E_pos (m) | its CPU share of the tick | on the front | "
-              "best method at E_pos = 1e-6 m | its CPU s/s | solve_ivp RK45 per tick at 1e-6 m | ratio | "
-              "best Python method at 1e-6 m | its CPU s/s | ratio | solve_ivp RK45 free at 1e-6 m | ratio |",
-              "|---|---:|---:|:---:|---|---:|---:|---:|---|---:|---:|---:|---:|"]
+    return lines
+
+
+def number(x, f="{:.3g}") -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f.format(x)
+
+
+def ratio(a, b) -> str:
+    return number(a / b if a and b and math.isfinite(b) else None, "x{:.1f}")
+
+
+def headline(summary, default_method: str) -> list[str]:
+    """Per scene: the node's default against the best method and the peer at the target error."""
+    lines = ["## Headline", "",
+             f"| scene | node default {default_method} 0.01 s: E_pos (m) | its CPU share of the tick | on the front | "
+             "best method at E_pos = 1e-6 m | its CPU s/s | solve_ivp RK45 per tick at 1e-6 m | ratio | "
+             "best Python method at 1e-6 m | its CPU s/s | ratio | solve_ivp RK45 free at 1e-6 m | ratio |",
+             "|---|---:|---:|:---:|---|---:|---:|---:|---|---:|---:|---:|---:|"]
     for label, s in summary.items():
         d = s["default"]
         lines.append(
-            f"| {label} | {num(d and d['pos'], '{:.2e}')} | {num(d and d['cpu_min'] * 100, '{:.2f} %')} | "
+            f"| {label} | {number(d and d['pos'], '{:.2e}')} | {number(d and d['cpu_min'] * 100, '{:.2f} %')} | "
             f"{'yes' if s['on_front'] else 'no' if s['on_front'] is not None else 'n/a'} | {s['best'] or 'none'} | "
-            f"{num(s['best_cost'])} | {num(s['peer'])} | {ratio(s['peer'], s['best_cost'])} | "
-            f"{s['best_py'] or 'none'} | {num(s['best_py_cost'])} | {ratio(s['peer'], s['best_py_cost'])} | "
-            f"{num(s['free_peer'])} | {ratio(s['free_peer'], s['best_cost'])} |")
+            f"{number(s['best_cost'])} | {number(s['peer'])} | {ratio(s['peer'], s['best_cost'])} | "
+            f"{s['best_py'] or 'none'} | {number(s['best_py_cost'])} | {ratio(s['peer'], s['best_py_cost'])} | "
+            f"{number(s['free_peer'])} | {ratio(s['free_peer'], s['best_cost'])} |")
     lines += ["", "CPU s/s = CPU seconds per simulated second; CPU share of the tick = CPU s/s x 100 % (the "
               "integration alone, not the node's messages). Costs at 1e-6 m are log-log interpolated between the two "
               "measured points of a curve that bracket it. 'on the front': no other configuration of node mode is "
@@ -362,6 +373,13 @@ def report(args, results, refdiff, summary, figs, jit_note, repeats) -> list[str
                   f"reference) the best method is x{min(ratios):.1f} to x{max(ratios):.1f} faster at 1e-6 m; the "
                   "issue's target is x20 " + ("(met on every scene measured)." if min(ratios) >= 20.0 else
                                               "(not met on every scene measured)."), ""]
+    return lines
+
+
+def all_runs(results) -> list[str]:
+    """Every run of both modes, a row each."""
+    fixed = fixed_methods()
+    lines = []
     for mode in ("node", "free"):
         lines += [f"## All runs, {mode} mode", "",
                   "| scene | method | step (s) / rtol | E_pos (m) | E_final (m) | E_head (rad) | E_power | CPU s/s (min) | RHS / sim s |",
