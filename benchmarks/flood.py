@@ -140,9 +140,6 @@ def run_one(label: str, seconds: float, flood_hz: float, args, scene: str, work:
     """One run: the node, a flood of ``flood_hz`` (0: none) for ``seconds``, the figures.
 
     Raises RuntimeError when the node or the flooder fails (its log says why)."""
-    from mta_sim_ros.bag import read_metadata
-    from mta_sim_ros.bag import summary as bag_summary
-
     from .realtime import cpu_seconds, write_params
 
     work.mkdir(parents=True, exist_ok=True)
@@ -184,19 +181,7 @@ def run_one(label: str, seconds: float, flood_hz: float, args, scene: str, work:
             start, end = flood["start"], flood["end"]
             result.sent, result.reached_hz = flood["sent"], flood["hz"]
         listener.spin_for(args.after)
-        in_flood = [v for t, v in listener.samples if start <= t <= end]
-        result.lag_max = max((float(v["lag_s"]) for v in in_flood), default=float("nan"))
-        after = [v for t, v in listener.samples if t >= end + 1.0]
-        result.lag_after = float(after[0]["lag_s"]) if after else float("nan")
-        result.misses_in_flood = int(listener.value("deadline_misses", end) - listener.value("deadline_misses", start))
-        result.taken = int(listener.value("steering_commands"))
-        caught_up = listener.value("ticks_caught_up")  # not said by a node before pacing.CATCH_UP
-        result.caught_up = int(caught_up) if caught_up == caught_up else -1
-        at_end = [m for t, m in rss if t <= end]
-        half = [m for t, m in rss if t >= start + (end - start) / 2 and t <= end]
-        result.rss_start_mib = rss[0][1]
-        result.rss_growth_mib = at_end[-1] - rss[0][1]
-        result.rss_growth_second_half_mib = half[-1] - half[0] if half else float("nan")
+        heard(result, listener, rss, start, end)
     finally:
         for proc in (flooder, node):
             if proc is not None and proc.poll() is None:
@@ -208,14 +193,41 @@ def run_one(label: str, seconds: float, flood_hz: float, args, scene: str, work:
                 except subprocess.TimeoutExpired:
                     proc.kill()
                     proc.wait()
-    bags = sorted((work / "bags").glob("*.mcap"))
+    recorded(result, work / "bags")
+    return result
+
+
+def heard(result: Run, listener: DiagnosticsListener, rss: list[tuple[float, float]], start: float,
+          end: float) -> None:
+    """The figures of the node's /diagnostics and of its memory (``rss``: (steady time, MiB))
+    over the flood, from ``start`` to ``end`` (steady time), into ``result``."""
+    in_flood = [v for t, v in listener.samples if start <= t <= end]
+    result.lag_max = max((float(v["lag_s"]) for v in in_flood), default=float("nan"))
+    after = [v for t, v in listener.samples if t >= end + 1.0]
+    result.lag_after = float(after[0]["lag_s"]) if after else float("nan")
+    result.misses_in_flood = int(listener.value("deadline_misses", end) - listener.value("deadline_misses", start))
+    result.taken = int(listener.value("steering_commands"))
+    caught_up = listener.value("ticks_caught_up")  # not said by a node before pacing.CATCH_UP
+    result.caught_up = int(caught_up) if caught_up == caught_up else -1
+    at_end = [m for t, m in rss if t <= end]
+    half = [m for t, m in rss if t >= start + (end - start) / 2 and t <= end]
+    result.rss_start_mib = rss[0][1]
+    result.rss_growth_mib = at_end[-1] - rss[0][1]
+    result.rss_growth_second_half_mib = half[-1] - half[0] if half else float("nan")
+
+
+def recorded(result: Run, bag_dir: Path) -> None:
+    """The figures of the run's one bag (its closing record, the commands it holds) into ``result``."""
+    from mta_sim_ros.bag import read_metadata
+    from mta_sim_ros.bag import summary as bag_summary
+
+    bags = sorted(bag_dir.glob("*.mcap"))
     if len(bags) != 1:
-        raise RuntimeError(f"expected one bag in {work / 'bags'}, found {len(bags)}")
+        raise RuntimeError(f"expected one bag in {bag_dir}, found {len(bags)}")
     run = read_metadata(bags[0])["mta_sim_ros.run"]
     result.ticks, result.misses = int(run["tick_count"]), int(run["tick_deadline_misses"])
     result.p99_ms, result.p999_ms, result.max_ms = (float(run[k]) * 1e3 for k in ("tick_p99", "tick_p99.9", "tick_max"))
     result.recorded = bag_summary(bags[0]).get("/steering_angle", {}).get("count", 0)
-    return result
 
 
 def runs_table(runs: list[Run]) -> list[str]:
