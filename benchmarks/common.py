@@ -1,9 +1,10 @@
 """What every benchmark shares: the report's header (command, date, machine), writing the report,
 progress lines, resolving a scene path, the environment of child processes (DDS on loopback),
-and timing several variants side by side."""
+the node's parameters file and a child's CPU time, and timing several variants side by side."""
 from __future__ import annotations
 
 import datetime
+import json
 import os
 import platform
 import shlex
@@ -108,6 +109,25 @@ def ros_env(domain: int) -> dict[str, str]:
     env["PYTHONUNBUFFERED"] = "1"
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
     return env
+
+
+def write_params(path: Path, **params) -> Path:
+    """A ROS parameters file for the node 'mta_sim'."""
+    lines = ["mta_sim:", "  ros__parameters:"]
+    for k, v in params.items():
+        value = ("true" if v else "false") if isinstance(v, bool) else json.dumps(v) if isinstance(v, str) else v
+        lines.append(f"    {k}: {value}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time of a live process, s (from /proc)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 def side_by_side(variants: dict, rounds: int, calls: int = 1, clock=time.perf_counter) -> dict[str, list[float]]:

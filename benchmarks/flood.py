@@ -33,7 +33,19 @@ from pathlib import Path
 from mta_sim_ros.node.params import argument
 from mta_sim_ros.validate import DURATION, MAX_DURATION, Range, number_arg, output_file, path_arg
 
-from .common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, log, resolve_scene, ros_env, table, write_report
+from .common import (
+    BENCHMARKS,
+    DEFAULT_SCENE,
+    REPO,
+    cpu_seconds,
+    header_lines,
+    log,
+    resolve_scene,
+    ros_env,
+    table,
+    write_params,
+    write_report,
+)
 
 HELP = "the node under a flood of steering commands: deadline misses, tick percentiles, lag, memory"
 DEFAULT_DOMAIN = 79
@@ -140,8 +152,6 @@ def run_one(label: str, seconds: float, flood_hz: float, args, scene: str, work:
     """One run: the node, a flood of ``flood_hz`` (0: none) for ``seconds``, the figures.
 
     Raises RuntimeError when the node or the flooder fails (its log says why)."""
-    from .realtime import cpu_seconds, write_params
-
     work.mkdir(parents=True, exist_ok=True)
     params = write_params(work / "params.yaml", scene_file=scene, bag_dir=str(work / "bags"), publish_rate=args.rate,
                           real_time_factor=1.0, record=True)

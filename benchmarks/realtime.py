@@ -24,7 +24,17 @@ from pathlib import Path
 
 from mta_sim_ros.validate import DURATION, PUBLISH_RATE, Range, number_arg, output_file, output_folder, path_arg
 
-from .common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, resolve_scene, ros_env, write_report
+from .common import (
+    BENCHMARKS,
+    DEFAULT_SCENE,
+    REPO,
+    cpu_seconds,
+    header_lines,
+    resolve_scene,
+    ros_env,
+    write_params,
+    write_report,
+)
 
 HELP = "the node at real-time factor 1, steered over DDS; tick statistics"
 DEFAULT_DOMAIN = 77
@@ -49,25 +59,6 @@ def add_arguments(p) -> None:
                    help="profile: the node's tick reports where each of its stages ends (advance, outputs, "
                         "encode, markers, publish, bag write; thread CPU time; garbage collection) and the "
                         "report says where the tick time goes (adds ~1 us per stage to every tick)")
-
-
-def write_params(path: Path, **params) -> Path:
-    """A ROS parameters file for the node 'mta_sim'."""
-    lines = ["mta_sim:", "  ros__parameters:"]
-    for k, v in params.items():
-        value = ("true" if v else "false") if isinstance(v, bool) else json.dumps(v) if isinstance(v, str) else v
-        lines.append(f"    {k}: {value}")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
-def cpu_seconds(pid: int) -> float | None:
-    """User + system CPU time of a live process, s (from /proc)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (OSError, IndexError, ValueError):
-        return None
 
 
 def run_processes(args, scene_path: str, work: Path, tick_cpu: int) -> tuple[str, float, dict]:

@@ -33,7 +33,18 @@ from pathlib import Path
 from mta_sim_ros.node.params import argument
 from mta_sim_ros.validate import COUNT, DURATION, PUBLISH_RATE, Range, number_arg, output_file, path_arg
 
-from .common import BENCHMARKS, DEFAULT_SCENE, REPO, header_lines, log, resolve_scene, ros_env, table, write_report
+from .common import (
+    BENCHMARKS,
+    DEFAULT_SCENE,
+    REPO,
+    header_lines,
+    log,
+    resolve_scene,
+    ros_env,
+    table,
+    write_params,
+    write_report,
+)
 
 HELP = "simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor"
 DEFAULT_DOMAIN = 78
@@ -135,8 +146,6 @@ def measure(scene: str, rate: float, factor: float, sim_seconds: float, work: Pa
 
     Raises RuntimeError when the node does not get there (its log says why)."""
     from mta_sim_ros.bag import recover
-
-    from .realtime import write_params
 
     work.mkdir(parents=True, exist_ok=True)
     params = write_params(work / "params.yaml", scene_file=scene, bag_dir=str(work / "bags"), publish_rate=rate,

@@ -35,7 +35,8 @@ def test_the_import_contracts_hold():
     done = subprocess.run([str(lint), str(REPO / ".importlinter")], cwd=REPO, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
-    assert "2 kept, 0 broken" in done.stdout
+    contracts = (REPO / ".importlinter").read_text().count("[importlinter:contract:")
+    assert f"{contracts} kept, 0 broken" in done.stdout
 
 
 def compiled_functions(tree: ast.Module) -> list[ast.FunctionDef]:
