@@ -18,8 +18,9 @@ import pytest
 
 from mta_sim_ros.physics import loader
 from mta_sim_ros.run import batch
-from mta_sim_ros.sweep import engine, report
+from mta_sim_ros.sweep import engine, report, results
 from mta_sim_ros.sweep import spec as sweep_spec
+from mta_sim_ros.sweep.export import export
 from mta_sim_ros.validate import InputError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -128,21 +129,21 @@ def test_pareto_front_is_the_brute_force_front():
     for trial in range(400):
         df = _random_results(rng, int(rng.integers(0, 40)), [3, 6, None][trial % 3])
         minimize = (bool(rng.integers(2)), bool(rng.integers(2)))
-        front = report.pareto_front(df, "x_m", "y_m", minimize)
+        front = results.pareto_front(df, "x_m", "y_m", minimize)
         assert set(front.index) == _brute_front(df, "x_m", "y_m", minimize), (trial, minimize)
         assert len(set(front.index)) == len(front)
         signed = front["x_m"].to_numpy() * (1 if minimize[0] else -1)
         assert np.all(np.diff(signed) >= 0)  # best x first
     df = _random_results(rng, 3000, None)
-    assert set(report.pareto_front(df, "x_m", "y_m").index) == _brute_front(df, "x_m", "y_m", (True, True))
+    assert set(results.pareto_front(df, "x_m", "y_m").index) == _brute_front(df, "x_m", "y_m", (True, True))
 
 
 def test_pareto_front_keeps_rows_equal_in_both():
     df = pd.DataFrame({"run": [0, 1, 2, 3], "scheme": [0, 1, 2, 3], "scene": "s", "train_hash": "",
                        "verdict": "ok", "reason": "", "x_m": [1.0, 1.0, 2.0, 1.0], "y_m": [5.0, 5.0, 1.0, 6.0]})
-    front = report.pareto_front(df, "x_m", "y_m")
+    front = results.pareto_front(df, "x_m", "y_m")
     assert front["run"].tolist() == [0, 1, 2]  # 0 and 1 equal: neither dominates; 3 is dominated by both
-    assert report.pareto_front(df.iloc[:0], "x_m", "y_m").empty
+    assert results.pareto_front(df.iloc[:0], "x_m", "y_m").empty
 
 
 # --------------------------------------------------------------------------- the report
@@ -175,9 +176,9 @@ def test_make_report_writes_the_figures_and_the_counts(grid, tmp_path):
     straight = _section(md, "## Scene straight_pass")
     assert "No ok run of this scene has both energy_per_ha_kWh and headland_width_m finite." in straight
     assert _section(straight, "### The best 10 schemes by energy_per_ha_kWh").count("\n| ") == 5  # head + 4 runs
-    df = report.load_results(folder)
+    df = results.load_results(folder)
     turn = df[df["scene"] == "headland_turn"]
-    front = report.pareto_front(turn, "energy_per_ha_kWh", "headland_width_m")
+    front = results.pareto_front(turn, "energy_per_ha_kWh", "headland_width_m")
     assert len(front) >= 1
     table = _section(_section(md, "## Scene headland_turn"),
                      "### Pareto front of energy_per_ha_kWh and headland_width_m")
@@ -203,29 +204,29 @@ def test_bad_names_and_folders_are_one_line_faults(grid, tmp_path):
     with pytest.raises(InputError, match=r"^--scene: 'headland' must be a scene of the results.*headland_turn"):
         report.make_report(folder, scene="headland", out=tmp_path / "r")
     with pytest.raises(InputError, match=r"^--x: 'carts\[0\].hitch_offset' must be a metric"):
-        report.pareto_front(report.load_results(folder), "carts[0].hitch_offset", "energy_kWh")
+        results.pareto_front(results.load_results(folder), "carts[0].hitch_offset", "energy_kWh")
     missing = tmp_path / "nowhere"
     with pytest.raises(InputError, match=f"^folder: '{missing}' must be a sweep's folder"):
-        report.load_results(missing)
+        results.load_results(missing)
     with pytest.raises(InputError, match=f"not found: {tmp_path / 'results.parquet'}"):
-        report.load_results(tmp_path)
+        results.load_results(tmp_path)
     (tmp_path / "results.parquet").write_bytes(b"not parquet")
     with pytest.raises(InputError, match=f"^results: '{tmp_path / 'results.parquet'}' must be a readable Parquet"):
-        report.load_results(tmp_path)
+        results.load_results(tmp_path)
     with pytest.raises(InputError) as caught:
-        report.load_results(tmp_path)
+        results.load_results(tmp_path)
     assert "\n" not in str(caught.value)
 
 
 # --------------------------------------------------------------------------- Sobol indices
 
 
-def _ishigami_results(count: int) -> tuple[report.Design, pd.DataFrame]:
+def _ishigami_results(count: int) -> tuple[results.Design, pd.DataFrame]:
     """Results shaped as a Saltelli sweep's of Ishigami's function: SALib's sample on the unit cube
     (as spec.saltelli_unit draws it), mapped to [-pi, pi]."""
     from SALib.sample import sobol as sobol_sample
 
-    design = report.Design("saltelli", count, ("x1", "x2", "x3"))
+    design = results.Design("saltelli", count, ("x1", "x2", "x3"))
     u = sobol_sample.sample(design.problem(), count, calc_second_order=True, seed=1)
     x = -math.pi + 2 * math.pi * u
     y = np.sin(x[:, 0]) + 7 * np.sin(x[:, 1]) ** 2 + 0.1 * x[:, 2] ** 4 * np.sin(x[:, 0])
@@ -237,41 +238,41 @@ def _ishigami_results(count: int) -> tuple[report.Design, pd.DataFrame]:
 
 def test_sobol_indices_of_ishigami():
     design, df = _ishigami_results(1024)
-    indices = report.sobol_indices(design, df, "ishigami", "s")
+    indices = results.sobol_indices(design, df, "ishigami", "s")
     assert list(indices) == ["x1", "x2", "x3"]
     for name, s1, st in zip(indices, ISHIGAMI_S1, ISHIGAMI_ST):
         assert indices[name]["S1"] == pytest.approx(s1, abs=0.03), name
         assert indices[name]["ST"] == pytest.approx(st, abs=0.03), name
         assert 0 < indices[name]["S1_conf"] < 0.1 and 0 < indices[name]["ST_conf"] < 0.1
-    assert report.sobol_indices(design, df, "ishigami", "s") == indices  # the bootstrap is seeded
+    assert results.sobol_indices(design, df, "ishigami", "s") == indices  # the bootstrap is seeded
     # Every run is needed.
     lacking = df.copy()
     lacking.loc[5, "ishigami"] = math.nan
     lacking.loc[7, "verdict"] = "stopped"
     with pytest.raises(InputError, match=r"^ishigami: missing in 2 of 8192 runs of scene 's' \(1 not ok, 1 not "
                                          r"finite\) must be given by every run"):
-        report.sobol_indices(design, lacking, "ishigami", "s")
+        results.sobol_indices(design, lacking, "ishigami", "s")
     with pytest.raises(InputError, match=r"1024 x 8 = 8192 runs.*it has 8191"):
-        report.sobol_indices(design, df.iloc[1:], "ishigami", "s")
+        results.sobol_indices(design, df.iloc[1:], "ishigami", "s")
     with pytest.raises(InputError, match=r"^sample.method: 'grid' must be saltelli"):
-        report.sobol_indices(report.Design("grid", 0, design.factors), df, "ishigami", "s")
+        results.sobol_indices(results.Design("grid", 0, design.factors), df, "ishigami", "s")
 
 
 def test_saltelli_sweep_end_to_end(saltelli):
     path, folder = saltelli
     spec = sweep_spec.load(path)
-    df = report.load_results(folder)
+    df = results.load_results(folder)
     assert len(df) == 48 and (df["verdict"] == "ok").all()
-    design = report.stored_design(folder, df)
-    assert design == report.Design("saltelli", 8, ("carts[0].hitch_offset", "carts[2].length"))
+    design = results.stored_design(folder, df)
+    assert design == results.Design("saltelli", 8, ("carts[0].hitch_offset", "carts[2].length"))
     assert design.problem() == sweep_spec.sobol_problem(spec)
     # metrics that vary on the straight pass (its energy per hectare is the same for every scheme
     # up to the start's transient, its largest hitch angle the start's 5 deg)
     for metric in ("max_offtracking_m", "swept_width_m"):
-        indices = report.sobol_indices(spec, df, metric, "straight_pass")
+        indices = results.sobol_indices(spec, df, metric, "straight_pass")
         assert list(indices) == ["carts[0].hitch_offset", "carts[2].length"]
         assert all(math.isfinite(v) for factor in indices.values() for v in factor.values())
-        assert report.sobol_indices(design, df, metric, "straight_pass") == indices
+        assert results.sobol_indices(design, df, metric, "straight_pass") == indices
     paths = report.make_report(folder, x="max_offtracking_m")
     md = paths[-1].read_text()
     sobol = _section(md, "### Sobol indices")
@@ -296,10 +297,10 @@ def _assert_row_metrics(result: batch.RunResult, row) -> None:
 
 def test_export_runs_as_the_sweep_ran_it(grid, tmp_path):
     spec_path, folder = grid
-    df = report.load_results(folder)
+    df = results.load_results(folder)
     row = df[(df["scene"] == "headland_turn") & (df["verdict"] == "ok")].iloc[-1]
     out = tmp_path / "best" / "scheme.yaml"
-    paths = report.export(folder, int(row["run"]), out)  # the spec's paths are absolute: its kept text will do
+    paths = export(folder, int(row["run"]), out)  # the spec's paths are absolute: its kept text will do
     assert paths == [out, out.with_name("scheme.straight_pass.yaml"), out.with_name("scheme.headland_turn.yaml")]
     header = out.read_text().splitlines()[:4]
     assert f"run {int(row['run'])}" in header[0] and "sweep grid" in header[0]
@@ -316,25 +317,25 @@ def test_export_runs_as_the_sweep_ran_it(grid, tmp_path):
         match = df[(df["scheme"] == row["scheme"]) & (df["scene"] == scene.name)].iloc[0]
         _assert_row_metrics(batch.run_metrics(scene), match)
     # The same with the spec given (named in the header).
-    again = report.export(folder, int(row["run"]), tmp_path / "again.yaml", spec_path=spec_path)[0].read_text()
+    again = export(folder, int(row["run"]), tmp_path / "again.yaml", spec_path=spec_path)[0].read_text()
     assert again.splitlines()[1].startswith(f"# spec: {spec_path}; ")
     assert again.splitlines()[4:] == out.read_text().splitlines()[4:]
 
 
 def test_export_without_scene_factors(saltelli, tmp_path):
     spec_path, folder = saltelli
-    df = report.load_results(folder)
+    df = results.load_results(folder)
     row = df.iloc[17]
     out = tmp_path / "scheme17.yaml"
-    assert report.export(folder, 17, out) == [out]  # the spec where the sweep read it (spec_path.txt)
+    assert export(folder, 17, out) == [out]  # the spec where the sweep read it (spec_path.txt)
     moved = spec_path.with_name("moved.yaml")
     spec_path.rename(moved)
     try:
         with pytest.raises(InputError, match=r"^--spec: \(not given\) must be the sweep's spec file.*relative paths"):
-            report.export(folder, 17, out)
+            export(folder, 17, out)
     finally:
         moved.rename(spec_path)
-    assert report.export(folder, 17, out, spec_path=spec_path) == [out]
+    assert export(folder, 17, out, spec_path=spec_path) == [out]
     scene_path = spec_path.parent.parent / "scenes" / "straight_pass.yaml"
     scene = loader.scene_from_data(loader.read_yaml_mapping(scene_path), str(scene_path), loader.load_train(out))
     _assert_row_metrics(batch.run_metrics(scene, fidelity="dynamic"), row)
@@ -342,17 +343,17 @@ def test_export_without_scene_factors(saltelli, tmp_path):
 
 def test_export_refuses_what_it_cannot_export(grid, tmp_path):
     spec_path, folder = grid
-    df = report.load_results(folder)
+    df = results.load_results(folder)
     with pytest.raises(InputError, match=r"^--run: 999 must be a run index of the results \(0 to 11\)"):
-        report.export(folder, 999, tmp_path / "x.yaml")
+        export(folder, 999, tmp_path / "x.yaml")
     with pytest.raises(InputError, match=r"^--run: 'a' must be a run index"):
-        report.export(folder, "a", tmp_path / "x.yaml")
+        export(folder, "a", tmp_path / "x.yaml")
     dropped = int(df[df["verdict"] == "dropped"]["run"].iloc[0])
     with pytest.raises(InputError, match=rf"^--run: {dropped} must be a run whose scheme was run: it was dropped "
                                          r"\(total_length 17 > max 16.75\)"):
-        report.export(folder, dropped, tmp_path / "x.yaml")
+        export(folder, dropped, tmp_path / "x.yaml")
     changed = tmp_path / "changed.yaml"
     changed.write_text(spec_path.read_text().replace("batch: 4", "batch: 5"))
     with pytest.raises(InputError, match=r"^--spec: .* the spec changed since the sweep"):
-        report.export(folder, 0, tmp_path / "x.yaml", spec_path=changed)
+        export(folder, 0, tmp_path / "x.yaml", spec_path=changed)
     assert not (tmp_path / "x.yaml").exists()

@@ -128,7 +128,7 @@ def report_main(args: argparse.Namespace) -> int:
 
 
 def export_main(args: argparse.Namespace) -> int:
-    from ..sweep import report
+    from ..sweep.export import export
 
     if len(args.items) != 2:
         fail("export", show(" ".join(args.items)) if args.items else "(missing)",
@@ -137,17 +137,17 @@ def export_main(args: argparse.Namespace) -> int:
         fail("--out", "(missing)", "given: the train file to write")
     if not args.items[1].isdigit():
         fail("RUN", show(args.items[1]), "a run index (the results' run column)")
-    for path in report.export(args.items[0], int(args.items[1]), Path(args.out), spec_path=args.spec):
+    for path in export(args.items[0], int(args.items[1]), Path(args.out), spec_path=args.spec):
         print(path)
     return 0
 
 
 def write_bags(spec, out: Path) -> list[Path]:
     """The bags of the runs the spec's ``bags:`` lists, as ``mta run`` writes them, each from its
-    scheme's train and scene files (exported beside: out/bags/run-N/, report.export), so the bag's
+    scheme's train and scene files (exported beside: out/bags/run-N/, sweep.export), so the bag's
     metadata holds files that repeat the run: out/bags/run-N.mcap and its report (a bag already
     there is kept: a resumed sweep). A run that fails is said, the others go on."""
-    from ..sweep import report
+    from ..sweep.export import export
     from . import run as run_tool
 
     written = []
@@ -158,7 +158,7 @@ def write_bags(spec, out: Path) -> list[Path]:
             continue
         folder = out / "bags" / f"run-{run}"
         folder.mkdir(parents=True, exist_ok=True)
-        paths = report.export(out, run, folder / "train.yaml", spec_path=spec.source, all_scenes=True)
+        paths = export(out, run, folder / "train.yaml", spec_path=spec.source, all_scenes=True)
         scene = paths[1 + run % len(spec.scenes)]
         args = argparse.Namespace(scene=str(scene), bag=str(bag), report=None, method=None, step=None, rate=None,
                                   fidelity=None, split_kinks=None, frame_id="map", quiet=True)
