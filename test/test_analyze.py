@@ -22,7 +22,7 @@ from mta_sim_ros.messages.topics import TOPICS, command_messages, output_message
 from mta_sim_ros.physics.loader import load_scene
 from mta_sim_ros.physics.steady import steady_circle
 from mta_sim_ros.run.simulation import run_scene
-from mta_sim_ros.tools import analyze
+from mta_sim_ros import analysis
 from mta_sim_ros.tools.run import run_metadata
 
 REPO = Path(__file__).resolve().parents[1]
@@ -104,7 +104,7 @@ def test_steady_turn_off_tracking_is_the_difference_of_radii(reports, bags):
     train spirals in from the straight start without overshooting its steady off-tracking)."""
     s = summary(reports["steady_turn"])
     closed = steady_circle(load_scene(SCENES / "steady_turn.yaml").train, 0.15)
-    data = analyze.load_bag(bags["steady_turn"])
+    data = analysis.load_bag(bags["steady_turn"])
     B1 = data.axles()[:, 0]
     chord = np.hypot(*np.diff(B1, axis=0).T).max()
     sagitta = chord**2 / (8 * closed.R_B[0])
@@ -117,10 +117,10 @@ def test_steady_turn_off_tracking_is_the_difference_of_radii(reports, bags):
 
 def test_off_tracking_distance_is_the_exact_nearest_point(bags):
     """The k-d tree search of the nearest point on B_1's path up to t gives the brute-force answer."""
-    data = analyze.load_bag(bags["headland_turn"])
+    data = analysis.load_bag(bags["headland_turn"])
     B = data.axles()
     upto = np.arange(len(B))
-    d, at_end = analyze.distance_to_path(B[:, 2], B[:, 0], upto)
+    d, at_end = analysis.distance_to_path(B[:, 2], B[:, 0], upto)
     for j in range(1, len(B), 13):
         a, seg = B[:j, 0], B[1:j + 1, 0] - B[:j, 0]
         len2 = (seg * seg).sum(axis=1)
@@ -222,7 +222,7 @@ def test_csv_round_trips_the_bag_exactly(reports, bags):
         by_topic.setdefault(topic, []).append((t_ns, msg))
     assert sorted(p.name for p in folder.glob("*.csv")) == sorted(t.strip("/") + ".csv" for t in by_topic)
     for topic, msgs in by_topic.items():
-        header, rows = analyze.read_csv(folder / (topic.strip("/") + ".csv"))
+        header, rows = analysis.read_csv(folder / (topic.strip("/") + ".csv"))
         assert header[0] == "time_s" and len(rows) == len(msgs), topic
         for row, (t_ns, msg) in zip(rows, msgs):
             assert int(Decimal(row[0]) * 10**9) == t_ns
@@ -232,7 +232,7 @@ def test_csv_round_trips_the_bag_exactly(reports, bags):
                     assert float(values[f"A{k + 1}_{name}_x_m"]) == pose.position.x
                     assert float(values[f"A{k + 1}_{name}_y_m"]) == pose.position.y
                     heading = float(values[f"A{k + 1}_{name}_heading_rad"])
-                    assert heading == analyze.quaternion_yaw(pose.orientation)
+                    assert heading == analysis.quaternion_yaw(pose.orientation)
                     assert -math.pi < heading <= math.pi
                     z, w = pose.orientation.z, pose.orientation.w  # the same rotation about z:
                     assert (math.cos(heading), math.sin(heading)) == pytest.approx((w * w - z * z, 2 * w * z),
@@ -299,10 +299,10 @@ def test_namespaced_node_style_bag(tmp_path):
     assert s["scene"] == "short_turn"
     assert s["duration_s"] == pytest.approx(3.0)
     assert s["energy_balance"]["samples"] == 61
-    header, rows = analyze.read_csv(folder / "csv" / "unit1__hitch_poses.csv")
+    header, rows = analysis.read_csv(folder / "csv" / "unit1__hitch_poses.csv")
     assert header[1:4] == ["A1_tractor_x_m", "A1_tractor_y_m", "A1_tractor_heading_rad"]
     assert rows[0][0] == "100.000000000"
-    header, rows = analyze.read_csv(folder / "csv" / "diagnostics.csv")
+    header, rows = analysis.read_csv(folder / "csv" / "diagnostics.csv")
     assert "status.0.values.1.key" in header and "status.0.message" in header
     column = header.index("status.0.values.1.key")
     assert rows[0][column] == "" and rows[1][column] == "rtf"
@@ -317,7 +317,7 @@ def test_plots_exist_and_are_nontrivial(reports):
     from matplotlib.image import imread
 
     for name in ("steady_turn", "headland_turn"):
-        for fig in analyze.FIGURES:
+        for fig in analysis.FIGURES:
             path = reports[name] / fig
             raw = path.read_bytes()
             assert raw[:8] == b"\x89PNG\r\n\x1a\n", path
@@ -344,7 +344,7 @@ def test_comparison_of_a_bag_with_itself_is_zero(bags, tmp_path):
     assert all(r["max_abs_diff"] == 0.0 for r in rows), [r for r in rows if r["max_abs_diff"]]
     assert report["labels"] == ["headland_turn", "headland_turn_2"]
     assert (folder / "csv" / "headland_turn_2" / "hitch_poses.csv").is_file()
-    for fig in analyze.FIGURES:
+    for fig in analysis.FIGURES:
         assert (folder / fig).is_file()
 
 

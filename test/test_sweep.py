@@ -339,7 +339,7 @@ def test_a_run_asked_for_writes_its_bag_and_the_bag_repeats_the_row(tmp_path):
     """``bags: [3]``: run 3 (scheme 1, the headland turn) also as ``mta run`` writes it, from its
     exported files; mta analyze's off-tracking of that bag (its own search, on the recorded poses)
     equals the row's."""
-    from mta_sim_ros.tools.analyze import load_bag, off_tracking
+    from mta_sim_ros.analysis import load_bag, off_tracking
 
     text = BASE.replace("  - path: carts[2].length\n    low: 5.0\n    high: 7.0\n    steps: 2\n", "") + "bags: [3]\n"
     path = write_spec(tmp_path, text)

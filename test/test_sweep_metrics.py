@@ -15,7 +15,7 @@ from mta_sim_ros.physics.steady import steady_circle
 from mta_sim_ros.run import batch
 from mta_sim_ros.run import offsets, whole
 from mta_sim_ros.run.simulation import Simulation, run_scene
-from mta_sim_ros.tools.analyze import distance_to_path
+from mta_sim_ros.analysis import distance_to_path
 
 TRAIN = resolve_config_path("trains/default.yaml")
 
