@@ -12,6 +12,7 @@ from geometry_msgs.msg import Twist
 from rclpy.serialization import serialize_message
 from test_session import SCENE, TICK, Run
 
+from mta_sim_ros.analysis import resimulate
 from mta_sim_ros.bag import read_messages
 from mta_sim_ros.bag.cdr import encode
 from mta_sim_ros.messages.decode import decode_ackermann, decode_twist
@@ -20,7 +21,6 @@ from mta_sim_ros.node.run_session import LOCKSTEP_TIMER_PERIOD, REPUBLISH_EVERY,
 from mta_sim_ros.node.status import OK, WARN
 from mta_sim_ros.physics.loader import load_scene
 from mta_sim_ros.run.simulation import Simulation
-from mta_sim_ros.tools.replay import resimulate
 
 TRAIN = load_scene(str(SCENE)).train
 L1, MAX_ANGLE, MAX_RATE = TRAIN.carts[0].length, TRAIN.actuator.max_angle, TRAIN.actuator.max_rate

@@ -13,8 +13,8 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
+from mta_sim_ros.analysis.resimulation import report, resimulate
 from mta_sim_ros.bag import BagWriter, read_messages, read_metadata
-from mta_sim_ros.tools.replay import report, resimulate
 
 from dds import REPO, Probe, ros_env, start_node, start_python, stop, write_params
 

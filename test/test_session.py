@@ -18,13 +18,13 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from visualization_msgs.msg import MarkerArray
 
+from mta_sim_ros.analysis import resimulate
 from mta_sim_ros.bag import BagError, read_messages, read_metadata
 from mta_sim_ros.node.pacing import CATCH_UP, MAX_TIMER_PERIOD
 from mta_sim_ros.node.params import PARAMS, ConfigError
 from mta_sim_ros.node.run_session import RunSession
 from mta_sim_ros.node.status import ERROR, OK, WARN
 from mta_sim_ros.physics.loader import load_scene
-from mta_sim_ros.tools.replay import resimulate
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"

@@ -96,12 +96,17 @@ def quaternion_yaw(q) -> float:
     return float(wrap(2.0 * math.atan2(q.z, q.w)))
 
 
+def last_component(topic: str) -> str:
+    """The last component of a topic's name: /unit1/hitch_poses -> hitch_poses."""
+    return topic.rstrip("/").rsplit("/", 1)[-1]
+
+
 def _find_topics(names: Iterable[str]) -> tuple[dict[str, str], list[str]]:
     """Map the last component of each known topic to its full name (first in sorted order)."""
     found: dict[str, str] = {}
     notes = []
     for full in sorted(names):
-        last = full.rstrip("/").rsplit("/", 1)[-1]
+        last = last_component(full)
         if last in KNOWN:
             if last in found:
                 notes.append(f"topic {full} ignored: {found[last]} already read as {last}")

@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .bagdata import BagData, quaternion_yaw
+from .bagdata import BagData, last_component, quaternion_yaw
 
 
 def _num(x) -> str:
@@ -55,7 +55,7 @@ def csv_rows(data: BagData, topic: str) -> tuple[list[str], list[list[Any]]]:
     topics (the log time is the stamp).
     """
     msgs = data.messages[topic]
-    last = topic.rstrip("/").rsplit("/", 1)[-1]
+    last = last_component(topic)
     names = data.cart_names
     if data.topics.get(last) == topic:
         if last == "hitch_poses":
