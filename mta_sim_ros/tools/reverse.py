@@ -1,6 +1,6 @@
 """``mta reverse``: an example controller node that backs the train up a straight line or a curve.
 
-The gain is designed from the linear model (mta_sim_ros/reversing.py: LQR about straight motion at
+The gain is designed from the linear model (controllers/reversing/controller.py: LQR about straight motion at
 the reversing speed, on the last axle's lateral offset, the hitch angles and the last cart's
 heading). The node subscribes ``hitch_poses`` and ``applied_steering`` (the state: A_1's lateral
 offset from the line y = 0 of the node's frame, the headings, hitch angles and the steering
@@ -17,10 +17,7 @@ the controller then reports what it saw.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
-
-import numpy as np
 
 from ..validate import Range, number_arg, output_file, path_arg
 
@@ -45,14 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ackermann_msgs.msg import AckermannDriveStamped
-    from geometry_msgs.msg import PoseArray
-    from rclpy.node import Node
-    from std_msgs.msg import Float64
-
     from ..config import resolve_config_path
-    from ..controllers.reversing.controller import design, design_curve
-    from ..node.ros_msgs import QOS
+    from ..controllers.reversing.controller import Reverser, design, design_curve
+    from ..controllers.reversing.reverse_node import ReverseNode
     from ..physics.loader import load_scene
     from .maneuver import spin_and_report
 
@@ -65,76 +57,5 @@ def main(args: argparse.Namespace) -> int:
     except ValueError as err:  # a circle tighter than the train can follow
         print(f"mta reverse: --radius: {err}", file=sys.stderr)
         return 2
-    gains = design(train, args.speed, *weights)
-    max_angle = train.actuator.max_angle
-
-    class Reverse(Node):
-        def __init__(self):
-            super().__init__("mta_reverse")
-            self.pub = self.create_publisher(AckermannDriveStamped, "ackermann_cmd", QOS)
-            self.create_subscription(Float64, "applied_steering", self._on_steering, QOS)
-            self.create_subscription(PoseArray, "hitch_poses", self._on_poses, QOS)
-            self.psi = 0.0
-            self.start_x = None
-            self.errors: list[float] = []
-            self.centre = self.last_bn = None
-            self.hitch, self.steer, self.reversed = 0.0, 0.0, 0.0
-            self.done = False
-            self.figures: dict = {}
-
-        def _on_steering(self, msg) -> None:
-            self.psi = msg.data
-
-        def _on_poses(self, msg) -> None:
-            if self.done or len(msg.poses) != train.n:
-                return
-            th = [2.0 * math.atan2(p.orientation.z, p.orientation.w) for p in msg.poses]
-            phis = [math.atan2(math.sin(th[k - 1] - th[k]), math.cos(th[k - 1] - th[k])) for k in range(1, train.n)]
-            last = msg.poses[-1].position
-            bn = np.array([last.x, last.y]) - train.carts[-1].length * np.array([math.cos(th[-1]), math.sin(th[-1])])
-            a1 = np.array([msg.poses[0].position.x, msg.poses[0].position.y])
-            if self.start_x is None:
-                self.start_x, self.last_bn = bn[0], bn
-                if curve is not None:  # the steady circle through the first pose: alpha = th_1 - eta_0
-                    alpha = th[0] - curve.point[1]
-                    self.centre = a1 - curve.R_A1 * np.array([math.cos(alpha), math.sin(alpha)])
-            if curve is None:
-                self.reversed = self.start_x - bn[0]
-                x = np.array([a1[1], th[0], *phis, self.psi])
-                command = gains.command(x, max_angle)
-                error = float(bn[1])
-            else:
-                self.reversed += float(np.hypot(*(bn - self.last_bn)))
-                self.last_bn = bn
-                r = a1 - self.centre
-                alpha = math.atan2(r[1], r[0])
-                eta = curve.point[1] + math.remainder(th[0] - alpha - curve.point[1], 2 * math.pi)
-                x = np.array([math.hypot(*r) - curve.R_A1, eta, *phis, self.psi])
-                command = curve.command(x, max_angle)
-                error = float(np.hypot(*(bn - self.centre)) - curve.radius)
-            self.hitch = max([self.hitch, *map(abs, phis)])
-            self.steer = max(self.steer, abs(self.psi))
-            if self.reversed >= args.settle:
-                self.errors.append(error)
-            stop = self.reversed >= args.distance
-            out = AckermannDriveStamped()
-            out.drive.steering_angle = command
-            out.drive.speed = 0.0 if stop else args.speed * math.cos(command)  # the rear axle's speed
-            self.pub.publish(out)
-            self.done = stop
-
-        def finish(self) -> None:
-            e = np.abs(np.array(self.errors)) if self.errors else np.array([math.nan])
-            self.figures = {"path": "straight" if curve is None else f"circle of {curve.radius:g} m, {args.side}",
-                            "centre": None if self.centre is None else self.centre.tolist(),
-                            "reversed_m": self.reversed, "samples": len(self.errors), "max_m": float(e.max()),
-                            "rms_m": float(np.sqrt(np.mean(e ** 2))), "max_hitch_deg": math.degrees(self.hitch),
-                            "max_steering_deg": math.degrees(self.steer), "speed_m_s": gains.speed,
-                            "gain": (curve or gains).K.ravel().tolist(),
-                            "closed_loop": [str(complex(v)) for v in (curve or gains).closed_loop]}
-            self.get_logger().info(
-                f"reversed {self.reversed:.1f} m at {gains.speed:g} m/s: lateral error of '{train.carts[-1].name}' "
-                f"after {args.settle:g} m: max {self.figures['max_m']:.3f} m, RMS {self.figures['rms_m']:.3f} m; "
-                f"largest hitch angle {self.figures['max_hitch_deg']:.1f} deg")
-
-    return spin_and_report(Reverse, args.ros_args, args.report)
+    reverser = Reverser(train, design(train, args.speed, *weights), curve, args.distance, args.settle, args.side)
+    return spin_and_report(lambda: ReverseNode(reverser), args.ros_args, args.report)

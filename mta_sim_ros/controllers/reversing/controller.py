@@ -1,5 +1,6 @@
 """Backing a train up a straight line: a state-feedback gain from the linear model, and the closed
-loop run on the simulator. No ROS (``tools/reverse.py`` is the same controller as a ROS node).
+loop run on the simulator. No ROS (reverse_node.py runs the same controller, :class:`Reverser`, as
+the ROS node of ``mta reverse``).
 
 Reversing, every hitch angle grows at V / l_k (linear.py: the open loop is unstable). The
 controller steers the tractor so that the last cart's axle B_n follows the line y = 0 (the train
@@ -247,3 +248,77 @@ def reverse_curve(scene, gains: CurveGains, centre, distance: float, settle: flo
                                                   after.axle[-1][1] - before.axle[-1][1]),
                  lambda out: math.hypot(out.axle[-1][0] - centre[0], out.axle[-1][1] - centre[1]) - gains.radius,
                  distance, settle)
+
+
+# -- fed pose by pose (mta reverse's node, reverse_node.py) ---------------------------------------------
+
+class Reverser:
+    """The controller as a node runs it, one hitch_poses message at a time: the state from the
+    hitch points A_k and headings th_k it is given and the applied steering ``psi`` (last heard),
+    the command of ``gains`` (the line y = 0) or of ``curve`` (the circle, placed at the first pose:
+    the train is taken to start on its steady circle), the speed; the last axle B_n's error kept once
+    it has reversed ``settle`` m, and the train stopped (speed 0, ``done``) once ``distance`` m."""
+
+    def __init__(self, train, gains: Gains, curve: CurveGains | None, distance: float, settle: float,
+                 side: str = "left"):
+        self.train, self.gains, self.curve = train, gains, curve
+        self.distance, self.settle, self.side = distance, settle, side
+        self.psi = 0.0
+        self.start_x = None
+        self.errors: list[float] = []
+        self.centre = self.last_bn = None
+        self.hitch, self.steer, self.reversed = 0.0, 0.0, 0.0
+        self.done = False
+
+    def answer(self, points, th) -> tuple[float, float]:
+        """(steering command, speed) answering one pose: ``points`` the A_k as (x, y), ``th`` the
+        headings th_k, both of every cart in order."""
+        train, curve = self.train, self.curve
+        max_angle = train.actuator.max_angle
+        phis = [math.atan2(math.sin(th[k - 1] - th[k]), math.cos(th[k - 1] - th[k])) for k in range(1, train.n)]
+        bn = np.array(points[-1]) - train.carts[-1].length * np.array([math.cos(th[-1]), math.sin(th[-1])])
+        a1 = np.array(points[0])
+        if self.start_x is None:
+            self.start_x, self.last_bn = bn[0], bn
+            if curve is not None:  # the steady circle through the first pose: alpha = th_1 - eta_0
+                alpha = th[0] - curve.point[1]
+                self.centre = a1 - curve.R_A1 * np.array([math.cos(alpha), math.sin(alpha)])
+        if curve is None:
+            self.reversed = self.start_x - bn[0]
+            x = np.array([a1[1], th[0], *phis, self.psi])
+            command = self.gains.command(x, max_angle)
+            error = float(bn[1])
+        else:
+            self.reversed += float(np.hypot(*(bn - self.last_bn)))
+            self.last_bn = bn
+            r = a1 - self.centre
+            alpha = math.atan2(r[1], r[0])
+            eta = curve.point[1] + math.remainder(th[0] - alpha - curve.point[1], 2 * math.pi)
+            x = np.array([math.hypot(*r) - curve.R_A1, eta, *phis, self.psi])
+            command = curve.command(x, max_angle)
+            error = float(np.hypot(*(bn - self.centre)) - curve.radius)
+        self.hitch = max([self.hitch, *map(abs, phis)])
+        self.steer = max(self.steer, abs(self.psi))
+        if self.reversed >= self.settle:
+            self.errors.append(error)
+        self.done = self.reversed >= self.distance
+        return command, 0.0 if self.done else self.gains.speed * math.cos(command)  # the rear axle's speed
+
+    def figures(self) -> dict:
+        """What the run measured (``mta reverse --report``)."""
+        gains, curve = self.gains, self.curve
+        e = np.abs(np.array(self.errors)) if self.errors else np.array([math.nan])
+        return {"path": "straight" if curve is None else f"circle of {curve.radius:g} m, {self.side}",
+                "centre": None if self.centre is None else self.centre.tolist(),
+                "reversed_m": self.reversed, "samples": len(self.errors), "max_m": float(e.max()),
+                "rms_m": float(np.sqrt(np.mean(e ** 2))), "max_hitch_deg": math.degrees(self.hitch),
+                "max_steering_deg": math.degrees(self.steer), "speed_m_s": gains.speed,
+                "gain": (curve or gains).K.ravel().tolist(),
+                "closed_loop": [str(complex(v)) for v in (curve or gains).closed_loop]}
+
+    def summary(self) -> str:
+        """What the run measured, in a log line."""
+        figures = self.figures()
+        return (f"reversed {self.reversed:.1f} m at {self.gains.speed:g} m/s: lateral error of "
+                f"'{self.train.carts[-1].name}' after {self.settle:g} m: max {figures['max_m']:.3f} m, RMS "
+                f"{figures['rms_m']:.3f} m; largest hitch angle {figures['max_hitch_deg']:.1f} deg")

@@ -1,0 +1,47 @@
+"""The ROS node of ``mta reverse`` (``mta_reverse``): controller.Reverser over topics.
+
+It subscribes ``hitch_poses`` (the A_k and headings th_k, from each pose's position and yaw) and
+``applied_steering``, and answers each pose with one ``ackermann_cmd``: the steering command and
+the speed in one message, one command a tick in lockstep.
+"""
+from __future__ import annotations
+
+import math
+
+from ackermann_msgs.msg import AckermannDriveStamped
+from geometry_msgs.msg import PoseArray
+from rclpy.node import Node
+from std_msgs.msg import Float64
+
+from ...node.ros_msgs import QOS
+from .controller import Reverser
+
+
+class ReverseNode(Node):
+    def __init__(self, reverser: Reverser):
+        super().__init__("mta_reverse")
+        self.reverser = reverser
+        self.pub = self.create_publisher(AckermannDriveStamped, "ackermann_cmd", QOS)
+        self.create_subscription(Float64, "applied_steering", self._on_steering, QOS)
+        self.create_subscription(PoseArray, "hitch_poses", self._on_poses, QOS)
+        self.figures: dict = {}
+
+    @property
+    def done(self) -> bool:
+        return self.reverser.done
+
+    def _on_steering(self, msg) -> None:
+        self.reverser.psi = msg.data
+
+    def _on_poses(self, msg) -> None:
+        if self.reverser.done or len(msg.poses) != self.reverser.train.n:
+            return
+        th = [2.0 * math.atan2(p.orientation.z, p.orientation.w) for p in msg.poses]
+        points = [(p.position.x, p.position.y) for p in msg.poses]
+        out = AckermannDriveStamped()
+        out.drive.steering_angle, out.drive.speed = self.reverser.answer(points, th)
+        self.pub.publish(out)
+
+    def finish(self) -> None:
+        self.figures = self.reverser.figures()
+        self.get_logger().info(self.reverser.summary())
