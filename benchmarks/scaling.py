@@ -2,7 +2,7 @@
 simulated second against the length of a run, and the peak memory of a 1-hour run. Offline (no
 DDS): measurements, not tests. Prints progress to stderr; writes Markdown and PNG figures.
 
-The tick is the node's own: a ``session.RunSession`` (ROS-free) on a scene file written for the
+The tick is the node's own: a ``run_session.RunSession`` (ROS-free) on a scene file written for the
 train, with the node's default parameters, recording its bag (MCAP, on the bag writer's thread as
 in the node), its ``publish`` a no-op (no DDS), its clock the real steady clock. Before each tick
 the two commands a steering player sends go in through ``RunSession.command`` (recorded as the
@@ -204,7 +204,7 @@ class SessionTicks:
             self.resets += 1
             s.reset()
         elif self.profile is not None:
-            self.markers.append(s.ticks_since_markers == 0)
+            self.markers.append(s.messages.ticks_since_markers == 0)
 
 
 def percentiles(v) -> dict[str, float]:

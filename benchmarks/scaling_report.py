@@ -137,7 +137,7 @@ def ms(seconds: float) -> str:
 def introduction(pngs: list[str]) -> list[str]:
     """What is measured, and the definitions."""
     return [
-        "Offline (no DDS): the node's own tick, `session.RunSession.tick`, on a scene file written for each "
+        "Offline (no DDS): the node's own tick, `run_session.RunSession.tick`, on a scene file written for each "
         "train, with the node's default parameters (see the docstring of `benchmarks/scaling.py`): "
         "advance (rk4, + validity check), outputs, the messages' CDR bytes (+ markers at 10 Hz), publish (a "
         "no-op here: no DDS), the bytes handed to the bag writer's thread (MCAP, as in the node). The two "

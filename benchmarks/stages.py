@@ -1,4 +1,4 @@
-"""Where a tick's time goes: a ``session.TickProfile`` that the node's own tick tells where each
+"""Where a tick's time goes: a ``timing.TickProfile`` that the node's own tick tells where each
 stage ends (``RunSession(profile=...)``, ``node.main(argv, profile=...)``), nothing patched.
 
 Per tick it keeps one row of ``COLUMNS``: the tick's wall time (perf_counter) and its thread's CPU
@@ -106,7 +106,7 @@ def stage_report(data) -> tuple[list[str], list[str]]:
     vol, invol, cpu = cols["voluntary_cs"], cols["involuntary_cs"], cols["thread_cpu"]
     summary = [
         "",
-        "The node's tick (`session.RunSession.tick`) says where each stage ends (`RunSession(profile=...)`, "
+        "The node's tick (`run_session.RunSession.tick`) says where each stage ends (`RunSession(profile=...)`, "
         "`benchmarks/stages.py`); each stage runs from the end of the one before. `publish` is "
         "one stage: every topic, /clock included.", "",
         f"{len(wall)} ticks; the slowest 0.1 % are the {int(slow.sum())} ticks of {p999 * 1e3:.3f} ms or more, "

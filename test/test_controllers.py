@@ -17,7 +17,8 @@ from mta_sim_ros.bag import read_messages
 from mta_sim_ros.bag.cdr import encode
 from mta_sim_ros.messages.decode import decode_ackermann, decode_twist
 from mta_sim_ros.node.commands import SPEED_LIMIT, ackermann_setting, twist_setting
-from mta_sim_ros.node.run_session import LOCKSTEP_TIMER_PERIOD, REPUBLISH_EVERY, message_commands
+from mta_sim_ros.node.pacing import LOCKSTEP_TIMER_PERIOD, REPUBLISH_EVERY
+from mta_sim_ros.node.run_session import message_commands
 from mta_sim_ros.node.status import OK, WARN
 from mta_sim_ros.physics.loader import load_scene
 from mta_sim_ros.run.simulation import Simulation

@@ -17,7 +17,7 @@ from .markers import MARKERS_TYPE, TrainMarkers, cart_color, train_markers
 
 
 class Encoders:
-    """Every message a node run sends, as ``session.RunSession`` asks for them: the output,
+    """Every message a node run sends, as ``node.run_session.RunSession`` asks for them: the output,
     marker and frame encoders (built at start and when frame_id changes), the diagnostics and
     Float64."""
 

@@ -1,6 +1,7 @@
 """Commands as a receiver holds them: validated, clamped, with their receipt time. No ROS here.
 
-The node takes every steering and speed command through a :class:`CommandInput`; ``mta replay
+The node takes every steering and speed command through a :class:`CommandInput`, and holds what
+all its command topics set in a :class:`HeldCommands`; ``mta replay
 --resimulate`` applies the same rule (:func:`hold`) to a node bag's recorded commands, so the
 re-simulation holds exactly what the node held.
 
@@ -29,6 +30,8 @@ import dataclasses
 import math
 import time
 from typing import Callable
+
+from ..messages.decode import CommandDecodeError, decode_ackermann, decode_twist
 
 #: Largest speed set-point the node accepts, m/s (either sign); beyond it the value is clamped.
 SPEED_LIMIT = 50.0
@@ -185,3 +188,63 @@ class MessageInput:
         self.clamped += bool(setting.problem) and not setting.refused
         self.last_problem = setting.problem
         return setting
+
+
+class HeldCommands:
+    """What a run holds of its commands, by the rule above: the steering command and speed
+    set-point the next tick holds (``steering``, ``speed``), the steering's rate limit
+    (``rate_limit``; None: the actuator's own), and for each source what it received and what was
+    wrong. ``message_types``: the message command topics taken (topic -> type; cmd_vel, and
+    ackermann_cmd where installed); ``clock``: steady wall seconds (each command's age)."""
+
+    def __init__(self, scene, v_set: float, message_types: dict[str, str], clock: Callable[[], float]):
+        ranges = command_ranges(scene)
+        self.steering = CommandInput(scene.initial.steering, *ranges["steering_angle"], "steering_angle", clock)
+        self.speed = CommandInput(v_set, *ranges["speed_setpoint"], "speed_setpoint", clock)
+        self.floats = {"steering_angle": self.steering, "speed_setpoint": self.speed}
+        self.message_types = message_types
+        self.messages = {t: MessageInput(t) for t in message_types}
+        self.wheelbase, self.actuator = scene.train.carts[0].length, scene.train.actuator
+        self.rate_limit: float | None = None
+
+    def take(self, topic: str, x: float) -> str:
+        """A Float64 command received on ``topic`` (steering_angle, speed_setpoint): held if
+        valid, clamped to its range, or refused; returns what was wrong ('' if nothing)."""
+        inp = self.floats[topic]
+        held = inp.take(x)
+        if held is not None and topic == "steering_angle":
+            self.rate_limit = None  # the rate limit goes with the steering command: the actuator's own
+        return inp.last_problem if held != x else ""  # refused or clamped
+
+    def take_message(self, topic: str, data: bytes) -> str:
+        """A command message received on ``topic`` (cmd_vel, ackermann_cmd) as its CDR bytes:
+        what it sets (twist_setting, ackermann_setting) is held, clamped, or it is refused;
+        returns what was wrong ('' if nothing)."""
+        try:
+            if topic == "cmd_vel":
+                setting = twist_setting(*decode_twist(data), self.wheelbase, self.steering.high)
+            else:
+                setting = ackermann_setting(*decode_ackermann(data), self.steering.high, self.actuator.max_rate)
+        except CommandDecodeError as err:
+            setting = Setting(problem=f"{topic}: {err}; refused", refused=True)
+        self.messages[topic].take(setting)
+        if setting.steering is not None:
+            self.steering.set(setting.steering)
+            self.rate_limit = setting.rate
+        elif not setting.refused:  # cmd_vel at v = 0 holds the steering as it is: a fresh command for the watchdog
+            self.steering.set(self.steering.value)
+        if setting.speed is not None:
+            self.speed.set(setting.speed)
+        return setting.problem
+
+    def restart(self, steering: float, speed: float) -> None:
+        """A new run holding ``steering`` and ``speed``: its own commands, no problem yet."""
+        self.steering.value, self.speed.value = steering, speed
+        self.steering.last_problem = self.speed.last_problem = ""
+        for inp in self.messages.values():
+            inp.last_problem = ""
+        self.rate_limit = None
+
+    def problems(self) -> list[str]:
+        """What was wrong with the last command of each source ('' where nothing)."""
+        return [self.steering.last_problem, self.speed.last_problem, *(m.last_problem for m in self.messages.values())]

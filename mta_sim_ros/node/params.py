@@ -1,6 +1,6 @@
 """The node's parameters as plain data: names, defaults, ranges and choices, which may change
 while running, and their checks. No ROS here: the node turns each :class:`Param` into a ROS
-ParameterDescriptor, the run session (session.py) checks values with :func:`check_value`, and
+ParameterDescriptor, the run session (run_session.py) checks values with :func:`check_value`, and
 :func:`read_params_file` checks a ROS parameters file by the same rules before ROS reads it."""
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ PARAMS = (
           "kinematic, dynamic, slip; a change applies at the next reset", live=True,
           choices=("", "auto", "kinematic", "dynamic", "slip")),
     Param("lockstep", False, "advance one tick only when a controller has answered the last outputs with a "
-          "command on any command topic (session.py: the protocol); real_time_factor and the watchdog do not "
+          "command on any command topic (pacing.py: the protocol); real_time_factor and the watchdog do not "
           "apply", live=False),
     Param("lockstep_timeout", 5.0, "lockstep: wall s without an answer before the node says in the log and "
           "/diagnostics (WARN) which topics it waits on; it keeps waiting", live=True, low=0.01, high=3600.0),

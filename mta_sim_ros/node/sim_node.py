@@ -1,9 +1,9 @@
 """The ROS 2 node: real-time simulation of a train, steered over topics, every run logged to MCAP.
 
-Glue between ROS and :class:`session.RunSession`, which decides everything (pacing, watchdog,
+Glue between ROS and :class:`run_session.RunSession`, which decides everything (pacing, watchdog,
 pause and reset, parameter checks, diagnostics, the bag): this module declares the parameters
 of params.PARAMS, makes the publishers, subscriptions, services and the two steady-clock timers
-(the tick timer every session.timer_period seconds, the diagnostics at 1 Hz) and hands each callback
+(the tick timer every RunSession.timer_period seconds, the diagnostics at 1 Hz) and hands each callback
 straight to the session. The session's messages arrive here as CDR bytes (messages.Encoders), published as
 they are.
 
@@ -18,10 +18,10 @@ taken, as it would wait for the tick that applies it. The command subscriptions 
 handlers (rmw_fastrtps wakes an executor waiting on them at every message as well); a publisher
 they cannot hear (best effort) is said by the 1 Hz timer, from the graph.
 
-In lockstep (parameter ``lockstep``; session.py: the protocol) the command subscriptions are
+In lockstep (parameter ``lockstep``; pacing.py: the protocol) the command subscriptions are
 the executor's: each command is handed to the session and the session fires at once, so a tick
 follows an answer by the executor's latency, not a timer's period; the timer (every
-session.LOCKSTEP_TIMER_PERIOD s) runs the first tick, re-publishes unanswered outputs and says a
+pacing.LOCKSTEP_TIMER_PERIOD s) runs the first tick, re-publishes unanswered outputs and says a
 stall. A flood then runs one tick per command, as fast as the node can: the controller's pace.
 
 cmd_vel and ackermann_cmd are taken raw (CDR bytes): the bag records them as received and the
@@ -99,7 +99,7 @@ def descriptor(p: Param) -> ParameterDescriptor:
 
 class SimNode(Node):
     def __init__(self, profile=None, **kwargs):
-        """``profile``: a session.TickProfile told where each tick's time goes (benchmarks)."""
+        """``profile``: a timing.TickProfile told where each tick's time goes (benchmarks)."""
         super().__init__("mta_sim", **kwargs)
         for p in PARAMS:
             try:
@@ -123,7 +123,7 @@ class SimNode(Node):
         sources = [(topic, Float64, False) for topic in COMMAND_TOPICS]
         for topic, type_name in MESSAGE_COMMANDS.items():
             try:
-                if topic not in self.session.message_types:
+                if topic not in self.session.inputs.message_types:
                     raise ImportError(f"no message definition of {type_name}")
                 sources.append((topic, ros_msgs.message_class(type_name), True))
             except (ImportError, AttributeError) as err:

@@ -3,7 +3,9 @@
 :class:`TickStats` keeps the compute time of every tick in a log-bucketed histogram (whole-run
 percentiles, exact count, mean, min and max) and the last ticks in a fixed-size window (for the
 1 Hz diagnostics). :class:`RealTimeFactor` measures how fast simulated time advances against a
-steady wall clock.
+steady wall clock. :class:`TickTiming` times each tick of a run, wall and CPU; a
+:class:`TickProfile` is told where a tick's stages end (the benchmarks'), :class:`NoProfile`
+hears nothing.
 """
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import time
 from bisect import bisect_right
 from collections import deque
 from itertools import accumulate
-from typing import Callable, Sequence
+from typing import Callable, Protocol, Sequence
 
 
 def interpolated_percentile(ordered: Sequence[float], p: float) -> float:
@@ -228,3 +230,56 @@ def reserve_cpu(cpu: int) -> str:
                 pass
     os.sched_setaffinity(0, {cpu})  # 0 = the calling thread (Linux)
     return f"tick thread pinned to CPU {cpu}; {moved} other threads of the node on CPUs {sorted(others)}"
+
+
+class TickTiming:
+    """The compute time of each tick of a run: wall (``stats``, on ``compute_clock``) and the tick
+    thread's CPU (``cpu``, on ``cpu_clock``) over the same work: wall >> CPU means the thread was
+    preempted (other processes on the core), not that the tick's code was slow. ``started``: the
+    run's start on the steady ``clock``."""
+
+    def __init__(self, clock: Callable[[], float], compute_clock: Callable[[], float] = time.perf_counter,
+                 cpu_clock: Callable[[], float] = time.thread_time):
+        self.clock, self.compute_clock, self.cpu_clock = clock, compute_clock, cpu_clock
+        self.new_run()
+
+    def new_run(self) -> None:
+        """Fresh statistics and wall time for a run (start, reset)."""
+        self.stats = TickStats()
+        self.cpu = TickStats()
+        self.started = self.clock()
+
+    def start(self) -> None:
+        """A tick's work begins."""
+        self._wall, self._cpu = self.compute_clock(), self.cpu_clock()
+
+    def stop(self, period: float) -> None:
+        """The tick's work ends; it misses its deadline past ``period`` s (0: no deadline)."""
+        cpu = self.cpu_clock() - self._cpu
+        self.stats.record(self.compute_clock() - self._wall, deadline=period if period > 0 else None)
+        self.cpu.record(cpu)
+
+
+class TickProfile(Protocol):
+    """Where a tick's time goes (``python -m benchmarks realtime --stages``): ``start`` when a tick
+    begins, ``mark(stage)`` as each stage ends (advance, outputs, encode, markers, publish,
+    bag_write), ``done`` when it ends."""
+
+    def start(self) -> None: ...
+
+    def mark(self, stage: str) -> None: ...
+
+    def done(self) -> None: ...
+
+
+class NoProfile:
+    """A TickProfile that hears nothing (the session's, unless it is given one)."""
+
+    def start(self) -> None:
+        pass
+
+    def mark(self, stage: str) -> None:
+        pass
+
+    def done(self) -> None:
+        pass
