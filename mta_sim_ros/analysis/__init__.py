@@ -2,7 +2,7 @@
 of ``mta replay --resimulate``). No ROS: bags are read with the package's own decoder.
 
 * :mod:`.bagdata`: a bag read into time series (:class:`BagData`, ``load_bag``).
-* :mod:`.geometry`: least-squares circles, the distance of points to a polyline.
+* :mod:`.track_geometry`: least-squares circles, the distance of points to a polyline.
 * :mod:`.measures`: the figures of one run (off-tracking, steady radii, energy balance).
 * :mod:`.compare`: two runs' largest differences.
 * :mod:`.tables`: every message as CSV.
@@ -15,7 +15,7 @@ of ``mta replay --resimulate``). No ROS: bags are read with the package's own de
 from .bag_report import analyze, default_folder
 from .bagdata import KNOWN, AnalyzeError, BagData, Series, last_component, load_bag, quaternion_yaw, wrap
 from .compare import compare
-from .geometry import distance_to_path, fit_circle
+from .track_geometry import distance_to_path, fit_circle
 from .measures import energy_balance, off_tracking, steady_radii, summarize
 from .plots import FIGURES, plot_all
 from .resimulation import Resimulation, ResimulationError, resimulate

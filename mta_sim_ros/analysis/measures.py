@@ -12,7 +12,7 @@ import numpy as np
 from ..compat import trapezoid
 from ..physics.steady import SteadyStateError, steady_circle
 from .bagdata import BagData, Series
-from .geometry import distance_to_path, fit_circle
+from .track_geometry import distance_to_path, fit_circle
 
 STEADY_STEERING_TOL = 1e-6  # rad: the steering counts as constant over the last third within this
 

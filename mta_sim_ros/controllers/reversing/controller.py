@@ -14,7 +14,7 @@ offset to first order (y_Bn = y - sum of each segment's length times its heading
 to A_{k+1}, A_k to B_k), R = r. The gain sees the last axle at most MAX_ERROR from the line (the
 line moved towards the train by the rest), and the command is clipped to the actuator's
 max_angle; where the steering the loop asks for still passes the actuator's angle or rate limit
-the train folds (python -m benchmarks reverse says where).
+the train folds (python -m benchmarks reversing says where).
 """
 from __future__ import annotations
 

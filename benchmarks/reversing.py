@@ -1,4 +1,4 @@
-"""``python -m benchmarks reverse``: where the reversing controller (reversing.py) holds and where it fails.
+"""``python -m benchmarks reversing``: where the reversing controller (controllers/reversing/) holds and where it fails.
 
 Offline, the dynamic level, 50 Hz, the gain designed at each run's speed (default weights): the
 default unit backs 100 m along y = 0 from a start 0.5 m to the side with its hitches at +-2 deg,
