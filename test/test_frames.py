@@ -231,7 +231,7 @@ def assert_encoded_frames(scene, samples, frame_id: str, prefix: str = "") -> No
     """The FrameEncoder's messages of each sample (decoded by rosbags) give the hitch poses, by
     composing /tf_static and /tf and by the URDF's kinematics at joint_states."""
     robot = robot_model(scene.train, prefix)
-    enc = FrameEncoder(robot, scene.train.actuator, frame_id)
+    enc = FrameEncoder(robot, frame_id)
     static = decoded(enc.latched(12.5))
     assert static["robot_description"].data == robot.urdf
     fixed = static["/tf_static"].transforms
@@ -249,7 +249,7 @@ def assert_encoded_frames(scene, samples, frame_id: str, prefix: str = "") -> No
 def test_the_encoded_frames_are_the_hitch_poses_and_the_urdf_s_kinematics(turning, frame_id):
     scene, samples = turning
     assert_encoded_frames(scene, samples, frame_id)
-    fixed = decoded(FrameEncoder(robot_model(scene.train), scene.train.actuator, frame_id).latched(12.5))
+    fixed = decoded(FrameEncoder(robot_model(scene.train), frame_id).latched(12.5))
     fixed = fixed["/tf_static"].transforms
     assert {(t.header.frame_id, t.child_frame_id) for t in fixed} == (
         {("base_link", "tractor"), ("air_cart_hitch", "air_cart"), ("seeder_hitch", "seeder")}
@@ -265,7 +265,7 @@ def test_the_frames_of_other_trains_are_their_hitch_poses(other_train):
 def test_joint_states_are_the_hitch_angles_of_the_poses_their_rates_and_the_steering(turning):
     scene, samples = turning
     robot = robot_model(scene.train)
-    enc = FrameEncoder(robot, scene.train.actuator)
+    enc = FrameEncoder(robot)
     act = scene.train.actuator
     for out in samples:
         js = decoded(enc.encode(out))["joint_states"]
@@ -279,6 +279,22 @@ def test_joint_states_are_the_hitch_angles_of_the_poses_their_rates_and_the_stee
         assert js.velocity[2] == min(max((target - out.steering) / act.time_constant, -act.max_rate), act.max_rate)
 
 
+def test_the_steering_joint_moves_at_a_rate_limit_held_as_an_input():
+    """An ackermann_cmd's steering_angle_velocity is a rate limit held beside the command
+    (Simulation.set_rate_limit): the steering joint's velocity is the actuator's under that limit,
+    and the angle moves at it over the tick (the train's own max_rate would be 10 times more)."""
+    scene = load_scene(REPO / "config" / "scenes" / "straight_pass.yaml")
+    sim = Simulation(scene, fidelity="dynamic")
+    rate = scene.train.actuator.max_rate / 10
+    psi0 = sim.y[sim.model.layout.steering]
+    sim.set_rate_limit(rate)
+    sim.advance(psi0 + 0.3, 3.0)  # a step the held limit closes in far more than a tick
+    out = sim.outputs()
+    js = decoded(FrameEncoder(robot_model(scene.train)).encode(out))["joint_states"]
+    assert js.velocity[-1] == out.steering_rate == rate
+    assert out.steering - psi0 == pytest.approx(rate * sim.tick, rel=1e-12)
+
+
 def test_odometry_in_a_steady_turn_is_the_rear_axle_on_its_closed_form_circle():
     """steady_turn: psi_1 = 0.15 rad held, settled after 60 s: the odometry is B_1 and th_1, its
     twist in base_link turns at v_B tan(psi_1) / l_1 about the circle R_B1 = l_1 / tan psi_1."""
@@ -288,7 +304,7 @@ def test_odometry_in_a_steady_turn_is_the_rear_axle_on_its_closed_form_circle():
         sim.advance(*sim.scheduled_inputs(sim.t))
     out = sim.outputs()
     l1 = scene.train.carts[0].length
-    odom = decoded(FrameEncoder(robot_model(scene.train, "u/"), scene.train.actuator).encode(out))["odom"]
+    odom = decoded(FrameEncoder(robot_model(scene.train, "u/")).encode(out))["odom"]
     assert (odom.header.frame_id, odom.child_frame_id) == ("u/odom", "u/base_link")
     (ax, ay), th = out.front[0], float(out.heading[0])
     p = odom.pose.pose

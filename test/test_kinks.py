@@ -1,7 +1,7 @@
 """Kinks: where the right-hand side is not smooth, the steppers split the step (integrate/steppers.py,
 model/kernel.py ``advance``), and each method keeps its order.
 
-- The actuator's release time in closed form is where the actuator law (actuator.py) leaves its
+- The actuator's release time in closed form is where the actuator law (test/laws.py) leaves its
   rate limit; each switching function changes sign exactly where its force law (test/laws.py:
   the laws as docs/model.md states them) changes branch; a held branch equals the law where the law is on it.
 - On kinks.yaml (a light tractor, a heavy cart, steering steps whose rate limit lets go inside a

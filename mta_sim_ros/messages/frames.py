@@ -13,8 +13,8 @@ and the frame of hitch_poses, and filled per tick from templates like the other 
   frame_id is the odom frame; with ``cart_frames`` the fixed joints (base_link -> tractor,
   each cart's hitch -> its body at B_k);
 * ``joint_states`` (sensor_msgs/JointState), every tick: the hitch joints' positions (hitch
-  angles th_{k-1} - th_k) and rates, then the steering joint's psi_1 and its rate (the actuator
-  law at the held command); no efforts;
+  angles th_{k-1} - th_k) and rates, then the steering joint's psi_1 and its rate (the actuator's
+  psi_1' under the held command and rate limit, Outputs.steering_rate); no efforts;
 * ``odom`` (nav_msgs/Odometry), every tick: frame ``<prefix>odom``, child ``<prefix>base_link``;
   the pose of B_1 with th_1, the twist in the child frame (REP-105): linear.x = s'_B1, the speed of
   the rear axle along the tractor's axis, angular.z = th'_1; linear.y = 0 (no side slip at B_1 on
@@ -34,7 +34,6 @@ import numpy as np
 from ..bag.cdr import Slot, encode
 from ..bag.template import TIME_SLOTS, CdrTemplate
 from ..bag.writer import stamp, stamp_parts
-from ..physics.actuator import steering_rate
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
@@ -56,11 +55,10 @@ class FrameEncoder:
     """The frames' messages of one robot model (module docstring): ``encode(out)`` per tick
     (/tf, joint_states, odom), ``latched(t)`` (/tf_static stamped t, robot_description)."""
 
-    def __init__(self, robot, actuator, frame_id: str = "map", cart_frames: bool = True):
-        """``robot``: a urdf.Robot; ``actuator``: the train's (model.spec.Actuator), for the
-        steering rate; ``frame_id``: the frame of hitch_poses; ``cart_frames``: publish the
-        joints' frames too (False: robot_state_publisher does)."""
-        self.robot, self.actuator, self.frame_id, self.cart_frames = robot, actuator, frame_id, cart_frames
+    def __init__(self, robot, frame_id: str = "map", cart_frames: bool = True):
+        """``robot``: a urdf.Robot; ``frame_id``: the frame of hitch_poses; ``cart_frames``:
+        publish the joints' frames too (False: robot_state_publisher does)."""
+        self.robot, self.frame_id, self.cart_frames = robot, frame_id, cart_frames
         self.n = n = len(robot.carts)
         q = [Slot("q", i) for i in range(2 * (n + 1))]  # z, w of: base_link, the steering, each hitch
         moving = [transform(TIME_SLOTS, robot.odom, robot.base, Slot("xy", 0), Slot("xy", 1), q[0], q[1])]
@@ -122,7 +120,7 @@ class FrameEncoder:
         v[n - 1] = psi
         rate = out.yaw_rate
         v[n:2 * n - 1] = rate[:-1] - rate[1:]  # d/dt (th_{k-1} - th_k)
-        v[2 * n - 1] = steering_rate(self.actuator, psi, float(out.command))
+        v[2 * n - 1] = out.steering_rate
         return {
             "/tf": self.tf.fill(xy=(bx, by), q=q, sec=sec, nanosec=nanosec),
             "joint_states": self.joints.fill(joint=v, sec=sec, nanosec=nanosec),

@@ -35,7 +35,7 @@ class Encoders(Protocol):
 
     def markers(self, train, frame_id: str) -> MarkersEncoder: ...
 
-    def frames(self, robot, actuator, frame_id: str, cart_frames: bool) -> FramesEncoder:
+    def frames(self, robot, frame_id: str, cart_frames: bool) -> FramesEncoder:
         """The frames of ``robot`` (urdf.Robot); ``cart_frames``: its joints' frames too."""
 
     def diagnostics(self, t: float, name: str, level: int, message: str,
@@ -60,7 +60,7 @@ class TickMessages:
         """The tick's encoders for ``frame_id`` (at start and when it changes)."""
         self.outputs = self.enc.outputs(self.cart_names, frame_id)
         self.markers = self.enc.markers(self.train, frame_id)
-        self.frames = self.enc.frames(self.robot, self.train.actuator, frame_id, cart_frames)
+        self.frames = self.enc.frames(self.robot, frame_id, cart_frames)
 
     def of_tick(self, out) -> dict[str, bytes]:
         """topic -> CDR bytes of one tick's outputs and frames (/tf, joint_states, odom)."""

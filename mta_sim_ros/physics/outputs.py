@@ -33,6 +33,7 @@ class Outputs:
     yaw_rate: np.ndarray  # th'_k, n, rad/s
     speed: float  # V = s'_A1, m/s
     steering: float  # psi_1, rad
+    steering_rate: float  # psi_1', rad/s: the actuator's rate under the held command and rate limit
     command: float  # steering command held over the last tick, rad
     speed_setpoint: float  # m/s
     resistance: np.ndarray  # F_Bk, n, N (> 0 opposes forward motion of B_k)
@@ -60,7 +61,8 @@ def kernel_outputs(P: np.ndarray, t: float, y, command: float, v_set: float, max
         com=cart[:, kernel.CX:kernel.CY + 1], rear_hitch=sc[kernel.REAR_X:kernel.REAR_Y + 1],
         heading=y[2:2 + n].copy(), hitch_angle=cart[1:, kernel.PHI], psi=cart[:, kernel.PSI],
         com_speed=cart[:, kernel.VC], axle_speed=cart[:, kernel.VB], yaw_rate=cart[:, kernel.VT],
-        speed=V, steering=float(y[n + 2]), command=command, speed_setpoint=v_set,
+        speed=V, steering=float(y[n + 2]), steering_rate=float(sc[kernel.STEERING_RATE]), command=command,
+        speed_setpoint=v_set,
         resistance=cart[:, kernel.RES], traction=traction, power=traction * V,
         resistance_power=float(sc[kernel.RES_POWER]), kinetic_energy=0.5 * float(sc[kernel.MASS]) * V * V,
         jackknife_margin=float(sc[kernel.MARGIN]))
@@ -94,6 +96,7 @@ def reference_outputs(model, t: float, y: np.ndarray, command: float, v_set: flo
         yaw_rate=np.array(ch.kapT) * V,
         speed=V,
         steering=float(y[L.steering]),
+        steering_rate=tm.steering_rate,
         command=command,
         speed_setpoint=v_set,
         resistance=resistance,

@@ -278,6 +278,7 @@ class SlipModel:
             yaw_rate=np.array(y[L.velocity][2:], dtype=float),
             speed=tm.speed,
             steering=float(y[L.steering]),
+            steering_rate=tm.steering_rate,
             command=command,
             speed_setpoint=v_set,
             resistance=tm.resistance,

@@ -207,7 +207,7 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
                 bag.add_topic(qualified(topic), type_name, LATCHED_QOS_YAML if topic in LATCHED_TOPICS
                               else DEFAULT_QOS_YAML)
             outputs, commands = OutputEncoder(cart_names, args.frame_id), CommandEncoder()  # the node's encoders
-            frames = FrameEncoder(robot, scene.train.actuator, args.frame_id)
+            frames = FrameEncoder(robot, args.frame_id)
             for topic, data in frames.latched(0.0).items():
                 bag.write_raw(qualified(topic), data, 0)
 

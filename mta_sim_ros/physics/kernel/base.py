@@ -145,8 +145,8 @@ REC = 7
 AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT, PULL = range(REC, REC + 11)
 OUT = REC + 11
 #: scalar outputs
-REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN = range(6)
-SCALARS = 6
+REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN, STEERING_RATE = range(7)
+SCALARS = 7
 
 #: most switching functions ``switches`` writes beyond the per-cart ones
 FORCE_SWITCHES = 3

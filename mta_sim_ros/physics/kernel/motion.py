@@ -38,6 +38,7 @@ from .base import (
     REAR_Y,
     RES,
     RES_POWER,
+    STEERING_RATE,
     TRACTION,
     VB,
     VC,
@@ -179,7 +180,8 @@ def clear(P, y):
 @jitable
 def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
     """Every reported quantity of state y into ``cart`` (n x OUT) and ``sc`` (SCALARS): the points
-    of geometry.cart_points, the chain's factors times V, the forces, and the jackknife margin."""
+    of geometry.cart_points, the chain's factors times V, the forces, the jackknife margin, and
+    the actuator's rate psi_1' under the held input."""
     n = int(P[H.n])
     traction, mass = rhs(P, y, command, v_set, max_rate, dy, cart, no_mode())
     V = y[n + 3]
@@ -208,6 +210,7 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
             cart[k, PHI] = 0.0
     sc[REAR_X], sc[REAR_Y] = ax, ay
     sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
+    sc[STEERING_RATE] = dy[n + 2]
     return traction
 
 
