@@ -17,6 +17,7 @@ from pathlib import Path
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
+from rosbags.highlevel import AnyReader
 
 from mta_sim_ros.node.loopback import loopback_env
 
@@ -57,6 +58,13 @@ def start_node(params_file: Path, log: Path | None, ros_args=(), preexec_fn=None
                             preexec_fn=preexec_fn, text=log is None)
 
 
+def start_mta(*args) -> subprocess.Popen:
+    """``mta ARGS`` in a process of its own (a player, a controller), its output to a pipe
+    (``proc.stdout``, text)."""
+    return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", *map(str, args)], env=ros_env(), cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
 def start_python(code: str, log: Path) -> subprocess.Popen:
     """Another process running ``code`` (dedented), e.g. a steering publisher."""
     return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], env=ros_env(), stdout=log.open("w"),
@@ -67,6 +75,25 @@ def stop(proc: subprocess.Popen, sig=signal.SIGTERM, timeout=20.0) -> int:
     if proc.poll() is None:
         proc.send_signal(sig)
     return proc.wait(timeout=timeout)
+
+
+def bags_in(folder: Path) -> list[Path]:
+    """The bags the node wrote into ``folder``, oldest first (their names start with the UTC time)."""
+    return sorted(folder.glob("*.mcap"))
+
+
+def read_bag(path: Path) -> dict[str, list]:
+    """topic -> [(log time, message)] of a bag, by rosbags (a reader independent of the package)."""
+    out: dict[str, list] = {}
+    with AnyReader([path]) as r:
+        for con, log_time, raw in r.messages():
+            out.setdefault(con.topic, []).append((log_time, r.deserialize(raw, con.msgtype)))
+    return out
+
+
+def value(diagnostics, key: str) -> str:
+    """A value of the node's diagnostics (a DiagnosticArray; '0' if absent)."""
+    return next((kv.value for kv in diagnostics.status[0].values if kv.key == key), "0")
 
 
 class Probe:

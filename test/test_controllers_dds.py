@@ -14,11 +14,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from dds import REPO, Probe, start_node, start_python, stop, write_params
+from dds import REPO, Probe, bags_in, read_bag, start_mta, start_node, start_python, stop, value, write_params
 from rosgraph_msgs.msg import Clock
 from test_controllers import raw_messages
-from test_drive import mta
-from test_node import bags_in, read_bag
 
 from mta_sim_ros.node.run_session import message_commands
 from mta_sim_ros.physics.loader import load_scene
@@ -27,12 +25,7 @@ from mta_sim_ros.run.simulation import speed_setpoint
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
 RATE = 50.0
 
-
-@pytest.fixture
-def probe():
-    p = Probe()
-    yield p
-    p.close()
+pytestmark = pytest.mark.dds
 
 
 def lockstep_params(tmp_path: Path, name: str) -> Path:
@@ -48,7 +41,7 @@ def follow_once(tmp_path: Path, name: str, probe: Probe) -> tuple[Path, float, f
     sub = probe.node.create_subscription(
         Clock, "/clock", lambda m: heard.append((time.monotonic(), m.clock.sec * 10**9 + m.clock.nanosec)), 10)
     try:
-        follower = mta("follow", "--passes", 2, "--length", 40)
+        follower = start_mta("follow", "--passes", 2, "--length", 40)
         assert probe.spin_until(lambda: follower.poll() is not None or node.poll() is not None, 600.0), \
             "the controller did not finish"
         assert follower.returncode == 0, follower.stdout.read()
@@ -205,7 +198,6 @@ def test_a_free_running_node_takes_cmd_vel_and_ackermann_cmd_and_records_them_as
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import Twist
     from rclpy.serialization import deserialize_message
-    from test_node import value
 
     params = write_params(tmp_path / "p.yaml", scene_file=str(SCENE), bag_dir=str(tmp_path / "bags"),
                           publish_rate=RATE, real_time_factor=1.0, watchdog_timeout=0.0, record=True)

@@ -8,9 +8,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from dds import REPO, Probe, ros_env, start_node, stop, write_params
+from dds import REPO, bags_in, read_bag, ros_env, start_mta, start_node, stop, write_params
 from rosgraph_msgs.msg import Clock
-from test_node import bags_in, read_bag
 
 from mta_sim_ros.physics.loader import load_scene
 from mta_sim_ros.run.simulation import table_value
@@ -18,17 +17,7 @@ from mta_sim_ros.run.simulation import table_value
 LANE_CHANGE = REPO / "config" / "scenes" / "lane_change.yaml"
 FOLLOW_BOUND_M = 0.05  # stated bound on the implement's lateral error on the straight passes
 
-
-@pytest.fixture
-def probe():
-    p = Probe()
-    yield p
-    p.close()
-
-
-def mta(*args, timeout=300) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", *map(str, args)], env=ros_env(), cwd=REPO,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+pytestmark = pytest.mark.dds
 
 
 def test_player_node_and_recorder_give_a_bag_that_matches_the_scene(tmp_path, probe):
@@ -39,7 +28,7 @@ def test_player_node_and_recorder_give_a_bag_that_matches_the_scene(tmp_path, pr
     try:
         clock = probe.subscribe("/clock", Clock)
         assert probe.spin_until(lambda: len(clock) > 0, 30.0)
-        player = mta("maneuver", "--scene", LANE_CHANGE, "--duration", 12.0)
+        player = start_mta("maneuver", "--scene", LANE_CHANGE, "--duration", 12.0)
         assert probe.spin_until(lambda: player.poll() is not None, 120.0), "the player did not finish"
         assert player.returncode == 0, player.stdout.read()
     finally:
@@ -82,7 +71,7 @@ def test_pure_pursuit_keeps_the_implement_on_the_passes(tmp_path, probe):
     try:
         clock = probe.subscribe("/clock", Clock)
         assert probe.spin_until(lambda: len(clock) > 0, 30.0)
-        follower = mta("follow", "--passes", 2, "--length", 80, "--report", report)
+        follower = start_mta("follow", "--passes", 2, "--length", 80, "--report", report)
         assert probe.spin_until(lambda: follower.poll() is not None, 180.0), "the controller did not finish"
         assert follower.returncode == 0, follower.stdout.read()
     finally:

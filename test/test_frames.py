@@ -401,12 +401,13 @@ def test_the_offline_bag_holds_the_frames_of_every_tick_latched_topics_first(tmp
 
 
 # -- the node, over real DDS ---------------------------------------------------------------------
-def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses(tmp_path):
+@pytest.mark.dds
+def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses(tmp_path, probe):
     """The node in /unit1, steered over DDS: every /tf it sends, with /tf_static, gives each
     cart's frame at its hitch pose; joint_states are the hitch angles; the robot_description a
     late subscriber gets parses with yourdfpy and its kinematics give the same frames; the odometry
     is base_link's frame and turns as its rear axle must; its bag holds all of it."""
-    from dds import Probe, start_node, stop, write_params
+    from dds import start_node, stop, write_params
     from geometry_msgs.msg import PoseArray
     from nav_msgs.msg import Odometry
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -419,7 +420,6 @@ def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses
                           bag_dir=str(tmp_path / "bags"), publish_rate=50.0, real_time_factor=4.0,
                           watchdog_timeout=0.0, record=True)
     node = start_node(params, tmp_path / "node.log", ros_args=["-r", "__ns:=/unit1"])
-    probe = Probe()
     try:
         poses = probe.subscribe("/unit1/hitch_poses", PoseArray)
         tf = probe.subscribe("/tf", TFMessage, 100)
@@ -432,7 +432,6 @@ def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses
         assert probe.spin_until(lambda: static and description and joints and abs(joints[-1].position[1]) > 0.05, 60.0)
     finally:
         assert stop(node) == 0, (tmp_path / "node.log").read_text()[-3000:]
-        probe.close()
     train = load_train(TRAIN)
     [fixed] = [m.transforms for m in static]
     by_stamp = lambda box: {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in box}  # noqa: E731

@@ -32,7 +32,7 @@ from mta_sim_ros.bag import BagWriter
 from mta_sim_ros.bag.schemas import share_dirs
 
 from cdr_refs import assert_fields, rclpy_message
-from dds import REPO, Probe, ros_env, start_python, stop
+from dds import REPO, ros_env, start_python, stop
 
 INTERFACES = REPO / "interfaces"
 
@@ -173,8 +173,8 @@ PUBLISHER = f"""
 """
 
 
-def test_each_type_crosses_real_dds_intact_with_the_jazzy_hash(tmp_path):
-    probe = Probe("interfaces_probe")
+@pytest.mark.dds
+def test_each_type_crosses_real_dds_intact_with_the_jazzy_hash(tmp_path, probe):
     publisher = start_python(PUBLISHER, tmp_path / "publisher.log")
     try:
         boxes = {t: probe.subscribe(TOPICS[t], type(rclpy_message(t, m))) for t, m in MESSAGES.items()}
@@ -188,7 +188,6 @@ def test_each_type_crosses_real_dds_intact_with_the_jazzy_hash(tmp_path):
             assert [str(info.topic_type_hash) for info in announced] == [JAZZY_HASHES[type_name]]
     finally:
         stop(publisher)
-        probe.close()
 
 
 #: rclpy's serialize_message of each message, in another process whose glibc fills every fresh

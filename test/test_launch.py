@@ -29,7 +29,7 @@ import launchfiles
 import pytest
 import rclpy
 import yaml
-from dds import REPO, Probe, ros_env, start_node, stop, write_params
+from dds import REPO, ros_env, start_node, stop, write_params
 from geometry_msgs.msg import PoseArray
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
@@ -330,17 +330,11 @@ def test_foxglove_layout_has_the_panels_of_the_brief_in_foxgloves_schema():
 # --------------------------------------------------------------------------- against a running node
 
 
-@pytest.fixture
-def probe():
-    p = Probe()
-    yield p
-    p.close()
-
-
 def urdf_links(text: str) -> set[str]:
     return {link.get("name") for link in ET.fromstring(text).iter("link")}
 
 
+@pytest.mark.dds
 def test_views_name_the_running_nodes_topics_qos_and_frames(tmp_path, probe):
     """Start the node as sim.launch.py does in the root namespace (config/sim.yaml's values),
     read its graph (publishers and subscriptions) and the frames of its odometry, poses and URDF,
@@ -393,6 +387,7 @@ URDF_2 = '<robot name="b"><link name="base_link"/><link name="tractor"/></robot>
 REFUSAL = "Unable to initialize urdf::model from robot description"
 
 
+@pytest.mark.dds
 def test_rsp_feed_sets_each_new_description_on_robot_state_publisher_in_its_namespace(tmp_path, probe):
     """A stand-in for robot_state_publisher in /unit1 (its parameter, and its refusal of what is
     no URDF); the latched description is there before the feed starts, as when the simulator

@@ -19,7 +19,9 @@ from pathlib import Path
 import pytest
 from rosgraph_msgs.msg import Clock
 
-from dds import REPO, Probe, start_node, stop, write_params
+from dds import REPO, start_node, stop, write_params
+
+pytestmark = pytest.mark.dds
 
 LOOPBACK = (ipaddress.ip_address("127.0.0.1"), ipaddress.ip_address("::1"))
 
@@ -85,13 +87,6 @@ def interfaces_off_loopback() -> int:
     lines = Path("/proc/net/fib_trie").read_text().splitlines()
     local = {lines[i - 1].split()[-1] for i, line in enumerate(lines) if "/32 host LOCAL" in line}
     return len({a for a in local if not a.startswith("127.")})
-
-
-@pytest.fixture
-def probe():
-    p = Probe()
-    yield p
-    p.close()
 
 
 def test_the_node_listens_on_loopback_only(tmp_path, probe):

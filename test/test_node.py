@@ -16,10 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bagcheck import assert_never_back
-from dds import REPO, Probe, start_node, start_python, stop, write_params
+from dds import REPO, Probe, bags_in, read_bag, start_node, start_python, stop, value, write_params
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray
-from rosbags.highlevel import AnyReader
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
@@ -32,6 +31,8 @@ from mta_sim_ros.run.simulation import Simulation
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
 RATE = 50.0
+
+pytestmark = pytest.mark.dds
 
 STEERER = """
     import math, sys, time, rclpy
@@ -51,13 +52,6 @@ STEERER = """
 """
 
 
-@pytest.fixture
-def probe():
-    p = Probe()
-    yield p
-    p.close()
-
-
 def params(tmp_path: Path, **overrides) -> Path:
     values = dict(scene_file=str(SCENE), bag_dir=str(tmp_path / "bags"), publish_rate=RATE, real_time_factor=1.0,
                   watchdog_timeout=0.0, record=True)
@@ -65,25 +59,8 @@ def params(tmp_path: Path, **overrides) -> Path:
     return write_params(tmp_path / "params.yaml", **values)
 
 
-def read_bag(path: Path) -> dict[str, list]:
-    out: dict[str, list] = {}
-    with AnyReader([path]) as r:
-        for con, log_time, raw in r.messages():
-            out.setdefault(con.topic, []).append((log_time, r.deserialize(raw, con.msgtype)))
-    return out
-
-
 def stamp_ns(stamp) -> int:
     return stamp.sec * 10**9 + stamp.nanosec
-
-
-def value(diagnostics: DiagnosticArray, key: str) -> str:
-    """A value of the node's diagnostics ('0' if absent)."""
-    return next((kv.value for kv in diagnostics.status[0].values if kv.key == key), "0")
-
-
-def bags_in(folder: Path) -> list[Path]:
-    return sorted(folder.glob("*.mcap"))
 
 
 def wait_for_output(probe: Probe, node, count=3, timeout=30.0) -> list:

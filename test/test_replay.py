@@ -42,13 +42,6 @@ def run_bag(tmp_path_factory) -> Path:
     return bag
 
 
-@pytest.fixture
-def probe():
-    p = Probe("replay_probe")
-    yield p
-    p.close()
-
-
 # -- re-simulation (no ROS) ----------------------------------------------------------------
 
 
@@ -143,6 +136,7 @@ STEERER = """
 """
 
 
+@pytest.mark.dds
 def test_resimulating_a_node_bag_is_exact(tmp_path, probe):
     """The node under a namespace, steered over DDS (bad commands among them), reset, steered again,
     stopped by SIGTERM; both run bags re-simulated."""
@@ -205,6 +199,7 @@ def receive(probe: Probe, topics: dict[str, type]) -> dict[str, list]:
     return boxes
 
 
+@pytest.mark.dds
 def test_replay_over_dds_keeps_order_data_and_timing(run_bag, tmp_path, probe):
     recorded = {t: [(lt, m) for _, lt, m in read_messages(str(run_bag), [t])] for t in ("/traction_power", "/clock")}
     bag_span = (recorded["/clock"][-1][0] - recorded["/clock"][0][0]) / 1e9  # 4 s
@@ -237,6 +232,7 @@ def test_replay_over_dds_keeps_order_data_and_timing(run_bag, tmp_path, probe):
     assert abs(half - wall_span / 2) < 0.2, (half, wall_span)
 
 
+@pytest.mark.dds
 def test_replay_start_skips_the_beginning_and_a_namespace_moves_the_topics(run_bag, probe):
     recorded = [(lt, m) for _, lt, m in read_messages(str(run_bag), ["/traction_power"])]
     start = recorded[0][0] + 1_000_000_000  # --start 1.0
@@ -259,6 +255,7 @@ def test_replay_start_skips_the_beginning_and_a_namespace_moves_the_topics(run_b
     assert clocks and clocks[0] >= start and clocks[0] == min(lt for lt, _ in recorded if lt >= start)
 
 
+@pytest.mark.dds
 def test_replay_stops_on_sigterm_and_loops(run_bag, probe):
     got = receive(probe, {"/clock": Clock})
     player = subprocess.Popen([sys.executable, "-m", "mta_sim_ros.cli", "replay", str(run_bag), "--rate", "8",

@@ -99,16 +99,15 @@ def test_without_the_controller_the_train_folds():
     assert "jackknife" in run.stopped and run.distance < 100.0
 
 
+@pytest.mark.dds
 @pytest.mark.parametrize("lockstep, radius", [(True, None), (False, None), (True, 50.0)],
                          ids=["lockstep", "free-running", "lockstep-curve"])
-def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, lockstep, radius):
+def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, probe, lockstep, radius):
     """The node (recording; in lockstep, or free-running at 4x real time) and ``mta reverse`` as two
     processes over DDS: the controller reports the seeder within 5 cm of the line over the last 25
     of 45 m reversed, and the node's bag, read independently (rosbags), shows the same: the largest
     |y| of B_n after 20 m."""
-    from dds import Probe, start_node, stop, write_params
-    from test_drive import mta
-    from test_node import bags_in, read_bag
+    from dds import bags_in, read_bag, start_mta, start_node, stop, write_params
 
     scene = yaml.safe_load(open(resolve_config_path("scenes/reversing.yaml")))
     scene.update(train=str(resolve_config_path("trains/default.yaml")), steering={"maneuver": "straight"})
@@ -125,8 +124,8 @@ def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, lockstep, radius):
     report = tmp_path / "reverse.json"
     # the controller first: free-running, the node reverses from its first tick on, and a train left
     # unsteered while a controller starts would fold (the hitch modes grow at V / l_k)
-    controller = mta("reverse", "--scene", scene_path, "--distance", 45, "--settle", 20, "--report", report, *extra)
-    probe = Probe()
+    controller = start_mta("reverse", "--scene", scene_path, "--distance", 45, "--settle", 20, "--report", report,
+                           *extra)
     node = None
     try:
         # its gain designed and its publisher in the graph before the node's first tick
@@ -142,7 +141,6 @@ def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, lockstep, radius):
         if controller.poll() is None:
             controller.kill()
             controller.wait()
-        probe.close()
         assert node is None or stop(node) == 0
     figures = json.loads(report.read_text())
     assert figures["reversed_m"] >= 45.0 and figures["max_m"] < 0.05, figures

@@ -18,6 +18,8 @@ from mta_sim_ros.node.recorder import BACKLOG_SECONDS, FLUSH_SECONDS
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"
 
+pytestmark = pytest.mark.dds
+
 
 @pytest.fixture(scope="module")
 def listener():
