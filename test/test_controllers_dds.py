@@ -86,7 +86,7 @@ def test_two_lockstep_runs_of_mta_follow_record_the_same_messages_faster_than_re
 
 #: The scripted controller: answers each new hitch_poses (by its stamp: a re-published one is not
 #: answered twice) with the command of the schedule at that tick, in one of three conventions,
-#: stops answering after ANSWERS ticks, and waits for its last message to be delivered.
+#: stops answering after ANSWERS ticks, and waits until the node has run the tick of its last answer.
 CONTROLLER = """
     import math, sys, time, rclpy
     from geometry_msgs.msg import PoseArray, Twist
@@ -115,10 +115,11 @@ CONTROLLER = """
             m = AckermannDriveStamped()
             m.drive.steering_angle, m.drive.speed = p, V0 * math.cos(p)
             return m
-    answered = set()
+    answered, seen = set(), []
 
     def on_poses(msg):
         stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        seen.append(stamp)
         if stamp in answered or len(answered) >= ANSWERS:
             return
         answered.add(stamp)
@@ -128,7 +129,11 @@ CONTROLLER = """
     deadline = time.monotonic() + 300
     while len(answered) < ANSWERS and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
-    time.sleep(1.0)  # the last answer delivered before the publisher goes
+    # the last answer taken before the publisher goes: the node has run its tick once it publishes
+    # outputs of a later time (while it waits it publishes the last ones again, with their stamp)
+    last, deadline = max(answered, default=(0, 0)), time.monotonic() + 30
+    while max(seen, default=(0, 0)) <= last and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
     node.destroy_node()
     rclpy.shutdown()
 """
