@@ -6,10 +6,12 @@
 - A failure on the background thread (the bag's write raising, as on a full disk; or an
   unexpected exception) stops recording with the error said, keeps what was written readable,
   and neither ``write`` nor ``close`` blocks or raises afterwards.
-No ROS node is started.
+The failures come from a BagWriter subclass the recorder is given (its ``bag_writer``). No ROS
+node is started.
 """
 from __future__ import annotations
 
+import itertools
 import struct
 import threading
 
@@ -30,6 +32,30 @@ def read(path):
     """(topic, log time, data) of every message, by rosbags."""
     with AnyReader([path]) as reader:
         return [(c.topic, t, reader.deserialize(raw, c.msgtype).data) for c, t, raw in reader.messages()]
+
+
+def failing_after(count: int, failure: Exception) -> type[BagWriter]:
+    """A BagWriter whose writes raise ``failure`` after the first ``count`` (a disk filling up)."""
+    calls = itertools.count(1)
+
+    class Failing(BagWriter):
+        def write_raw(self, *args, **kwargs):
+            if next(calls) > count:
+                raise failure
+            return super().write_raw(*args, **kwargs)
+
+    return Failing
+
+
+def held_until(release: threading.Event) -> type[BagWriter]:
+    """A BagWriter whose writes wait until ``release`` is set (a writer thread fallen behind)."""
+
+    class Held(BagWriter):
+        def write_raw(self, *args, **kwargs):
+            release.wait()
+            return super().write_raw(*args, **kwargs)
+
+    return Held
 
 
 def write_ticks(rec: RunRecorder, first: int, count: int) -> None:
@@ -65,20 +91,10 @@ def test_a_reset_splits_the_messages_between_two_bags(tmp_path):
 
 
 @pytest.mark.parametrize("failure", [BagError("disk full (simulated)"), TypeError("unexpected (simulated)")])
-def test_a_failure_on_the_writer_thread_stops_recording_and_keeps_the_bag(tmp_path, monkeypatch, failure):
+def test_a_failure_on_the_writer_thread_stops_recording_and_keeps_the_bag(tmp_path, failure):
     """After 2000 messages every write raises. The error is reported, later writes are dropped
     without blocking, close returns, and what reached the file is readable after recover."""
-    original = BagWriter.write_raw
-    calls = {"n": 0}
-
-    def failing(self, *args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] > 2000:
-            raise failure
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(BagWriter, "write_raw", failing)
-    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True, bag_writer=failing_after(2000, failure))
     path = rec.start()
     write_ticks(rec, 0, 1500)  # 3000 messages
     rec._sync()
@@ -87,7 +103,6 @@ def test_a_failure_on_the_writer_thread_stops_recording_and_keeps_the_bag(tmp_pa
     done = threading.Event()
     threading.Thread(target=lambda: (write_ticks(rec, 1500, 10), rec.close(), done.set()), daemon=True).start()
     assert done.wait(10.0), "write or close blocked after the failure"
-    monkeypatch.undo()  # recover writes with BagWriter too
     fixed = tmp_path / "fixed.mcap"
     recover(path, fixed)
     got = read(fixed)
@@ -108,14 +123,11 @@ def test_renamed_topics_land_under_their_bag_names(tmp_path):
     assert read(path) == [("/unit1/traction_power", 10, 5.0), ("/clock_like", 10, 6.0)]
 
 
-def test_a_bag_no_message_reached_is_removed_and_the_error_says_so(tmp_path, monkeypatch):
+def test_a_bag_no_message_reached_is_removed_and_the_error_says_so(tmp_path):
     """The first write fails (a disk full from the start): no chunk ever reached the file, so
     the bag, which would pass for an empty run, is removed, and the error names it."""
-    def failing(self, *args, **kwargs):
-        raise BagError("disk full (simulated)")
-
-    monkeypatch.setattr(BagWriter, "write_raw", failing)
-    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True,
+                      bag_writer=failing_after(0, BagError("disk full (simulated)")))
     path = rec.start()
     write_ticks(rec, 0, 10)
     rec._sync()
@@ -124,17 +136,11 @@ def test_a_bag_no_message_reached_is_removed_and_the_error_says_so(tmp_path, mon
     rec.close()
 
 
-def test_behind_says_when_more_than_the_backlog_waits_for_the_writer(tmp_path, monkeypatch):
+def test_behind_says_when_more_than_the_backlog_waits_for_the_writer(tmp_path):
     """``behind`` is true while more than BACKLOG_SECONDS of log time handed over is not yet
     written (the thread is held inside its first write here), false once it is."""
-    original, release = BagWriter.write_raw, threading.Event()
-
-    def held(self, *args, **kwargs):
-        release.wait()
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(BagWriter, "write_raw", held)
-    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True)
+    release = threading.Event()
+    rec = RunRecorder(str(tmp_path), TOPICS, {}, background=True, bag_writer=held_until(release))
     rec.start()
     for i in range(int(BACKLOG_SECONDS * 100)):  # exactly BACKLOG_SECONDS at 100 Hz: not more
         rec.write("/traction_power", float64(0.0), i * 10**7)

@@ -49,18 +49,21 @@ BACKLOG_SECONDS = 0.25
 
 class RunRecorder:
     def __init__(self, bag_dir: str, topics: dict[str, str], metadata: dict[str, str], background: bool = False,
-                 rename: dict[str, str] | None = None, qos: dict[str, str] | None = None):
+                 rename: dict[str, str] | None = None, qos: dict[str, str] | None = None,
+                 bag_writer: type[BagWriter] = BagWriter):
         """``topics``: fully qualified name -> type (pkg/msg/Name); ``metadata``: the run's
         description (files, parameters, version), stored as the metadata record mta_sim_ros;
         ``background``: write on a thread of its own (see the module docstring); ``rename``: names
         the caller writes under -> their topic in the bag (the node's relative names -> names
         qualified in its namespace), resolved on the writing thread; ``qos``: fully qualified
-        name -> offered_qos_profiles of a topic not published with the default QoS (a latched one)."""
+        name -> offered_qos_profiles of a topic not published with the default QoS (a latched one);
+        ``bag_writer``: the class each bag is written with (a test's subclass fails or holds a write)."""
         self.bag_dir = Path(bag_dir)
         self.topics = dict(topics)
         self.qos = dict(qos or {})
         self.rename = dict(rename or {})
         self.metadata = dict(metadata)
+        self.bag_writer = bag_writer
         self.writer: BagWriter | None = None
         self.path: Path | None = None
         self.error: str = ""
@@ -81,8 +84,8 @@ class RunRecorder:
         self.messages = 0
         try:
             self.bag_dir.mkdir(parents=True, exist_ok=True)
-            self.writer = BagWriter(str(self.path), metadata={"mta_sim_ros": self.metadata},
-                                    flush_after_ns=round(FLUSH_SECONDS * 1e9))
+            self.writer = self.bag_writer(str(self.path), metadata={"mta_sim_ros": self.metadata},
+                                         flush_after_ns=round(FLUSH_SECONDS * 1e9))
             for topic, type_name in self.topics.items():
                 self.writer.add_topic(topic, type_name, self.qos.get(topic, DEFAULT_QOS_YAML))
         except (BagError, OSError) as err:
