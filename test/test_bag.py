@@ -22,6 +22,7 @@ from pathlib import Path
 import pytest
 import yaml
 from cdr_refs import assert_fields, rclpy_message
+from child import call
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
@@ -139,8 +140,10 @@ def sample(tmp_path_factory):
 
 
 @pytest.fixture
-def fake_msgs(tmp_path, monkeypatch):
-    """A fake interface package on AMENT_PREFIX_PATH (definition cache cleared around)."""
+def fake_msgs(tmp_path) -> dict[str, str]:
+    """The environment of a process that has a fake interface package on AMENT_PREFIX_PATH. The
+    tests that read it run in such a process of their own (``child.call``): a process reads the
+    variable, and caches the definitions, for good."""
     msg_dir = tmp_path / "prefix" / "share" / "fake_msgs" / "msg"
     msg_dir.mkdir(parents=True)
     (msg_dir / "Outer.msg").write_text(
@@ -156,10 +159,7 @@ def fake_msgs(tmp_path, monkeypatch):
     (msg_dir / "Inner.msg").write_text("geometry_msgs/Point where\nint32 k\n")
     (msg_dir / "Stamped.msg").write_text("Header header\nfloat64 value\n")
     (msg_dir / "Broken.msg").write_text("float64 ok\nMissing m\n")
-    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "prefix"))
-    message_definition.cache_clear()
-    yield
-    message_definition.cache_clear()
+    return {"AMENT_PREFIX_PATH": str(tmp_path / "prefix")}
 
 
 # -- schemas -------------------------------------------------------------------
@@ -212,6 +212,10 @@ def test_vendored_definitions_are_the_installed_files_of_every_type_the_package_
 
 
 def test_field_type_resolution(fake_msgs):
+    call(field_type_resolution, env=fake_msgs)
+
+
+def field_type_resolution():
     text = message_definition("fake_msgs/msg/Outer")
     blocks = [line[5:] for line in text.splitlines() if line.startswith("MSG: ")]
     # sorted per file, depth first, each once: Point comes via Inner first
@@ -226,7 +230,11 @@ def test_field_type_resolution(fake_msgs):
 
 
 def test_bounded_and_fixed_arrays_roundtrip(fake_msgs, tmp_path):
-    path = tmp_path / "fake.mcap"
+    call(bounded_and_fixed_arrays_roundtrip, str(tmp_path / "fake.mcap"), env=fake_msgs)
+
+
+def bounded_and_fixed_arrays_roundtrip(bag_path: str):
+    path = Path(bag_path)
     msg = {"header": {"stamp": {"sec": -2, "nanosec": 300_000_000}, "frame_id": "f"},
            "inners": [{"where": {"x": 1.0, "y": 2.0, "z": 3.0}, "k": -7}],
            "pair": [{"where": {"x": 0.5, "y": 0.0, "z": 0.0}, "k": 1},
@@ -244,6 +252,10 @@ def test_bounded_and_fixed_arrays_roundtrip(fake_msgs, tmp_path):
 
 
 def test_missing_definitions_name_the_type(fake_msgs):
+    call(missing_definitions_name_the_type, env=fake_msgs)
+
+
+def missing_definitions_name_the_type():
     with pytest.raises(MessageDefinitionNotFound, match="nope_msgs/msg/Nothing"):
         message_definition("nope_msgs/msg/Nothing")
     missing = r"fake_msgs/msg/Missing.*needed by fake_msgs/Broken"

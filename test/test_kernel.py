@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trains
+from child import python
 
 from mta_sim_ros import jit
 from mta_sim_ros.integrate import rk
@@ -263,18 +262,33 @@ def test_the_compiled_kernels_are_the_default_and_compile_at_construction():
     assert sim.stepper.nfev == 2 * 4 * math.ceil(sim.tick / sim.stepper_step - 1e-9)
 
 
-def test_switches_keep_the_python_path(monkeypatch):
+#: MTA_SIM_NO_JIT set once numba is loaded, in a process of its own (its own environment): the
+#: compiled default gives way to it, an explicit request does not.
+SET_AFTER_IMPORT = """
+    import os, sys
+    from mta_sim_ros import jit
+    from mta_sim_ros.physics.loader import load_scene
+    from mta_sim_ros.run.simulation import NO_JIT_ENV, Simulation
+    scene = load_scene(sys.argv[1])
+    os.environ[NO_JIT_ENV] = "1"
+    env = Simulation(scene, fidelity="dynamic")
+    assert env.compiled is False and NO_JIT_ENV in env.compiled_note, env.compiled_note
+    if jit.ENABLED:
+        assert Simulation(scene, fidelity="dynamic", compiled=True).compiled is True  # an explicit request wins
+    print(jit.ENABLED)
+"""
+
+
+def test_switches_keep_the_python_path():
     scene = headland()
     off = Simulation(scene, fidelity="dynamic", compiled=False)
     assert off.compiled is False and "compiled=False" in off.compiled_note
     assert Simulation(scene, fidelity="kinematic").compiled is jit.ENABLED  # the kinematic level has kernels
     assert Simulation(scene, fidelity="dynamic", algorithm=1).compiled is None  # the reference path
     assert Simulation(scene, fidelity="slip").compiled is None
-    monkeypatch.setenv(NO_JIT_ENV, "1")
-    env = Simulation(scene, fidelity="dynamic")
-    assert env.compiled is False and NO_JIT_ENV in env.compiled_note
-    if jit.ENABLED:
-        assert Simulation(scene, fidelity="dynamic", compiled=True).compiled is True  # an explicit request wins
+    done = python(SET_AFTER_IMPORT, str(REPO / "config/scenes/headland_turn.yaml"))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == str(jit.ENABLED)  # numba ran there as here
 
 
 def test_without_numba_the_same_source_runs_as_python():
@@ -285,8 +299,7 @@ def test_without_numba_the_same_source_runs_as_python():
             f"sim, err = run_scene(load_scene({str(REPO / 'config/scenes/headland_turn.yaml')!r}), fidelity='dynamic'); "
             "assert 'numba' not in sys.modules and not jit.ENABLED and sim.compiled is False; "
             "print(repr(sim.y.tolist()))")
-    env = {**__import__("os").environ, NO_JIT_ENV: "1", "PYTHONPATH": str(REPO)}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    done = python(code, env={NO_JIT_ENV: "1"}, timeout=600)
     assert done.returncode == 0, done.stderr
     sim, err = run_scene(headland(), fidelity="dynamic")
     assert err is None and eval(done.stdout) == sim.y.tolist()

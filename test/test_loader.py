@@ -4,13 +4,16 @@ Each fault message has the form ``FIELD: VALUE in LOCATION of FILE must be RULE`
 """
 from __future__ import annotations
 
+import ast
 import copy
+import json
 import math
 import re
 from pathlib import Path
 
 import pytest
 import yaml
+from child import python
 
 from mta_sim_ros.physics import loader, spec
 from mta_sim_ros.physics.loader import SpecError
@@ -457,12 +460,19 @@ def test_scientific_notation_reads_as_a_number(tmp_path):
     assert (loaded.integrator.rtol, loaded.integrator.atol) == (1e-6, 1e-9)
 
 
-def test_scene_train_path_is_relative_to_the_scene_folder(tmp_path, monkeypatch):
+def test_scene_train_path_is_relative_to_the_scene_folder(tmp_path):
+    """Loaded from another folder (a process of its own, started in trains/, not the scene's)."""
     write_pair(tmp_path)
-    monkeypatch.chdir(tmp_path / "trains")  # not the scene's folder
-    loaded = loader.load_scene(Path("..") / "scenes" / "probe_scene.yaml")
-    assert loaded.train.source == str(Path("..") / "trains" / "probe.yaml")
-    assert loaded.raw == SCENE and loaded.source == str(Path("..") / "scenes" / "probe_scene.yaml")
+    done = python("""
+        from pathlib import Path
+        from mta_sim_ros.physics import loader
+        loaded = loader.load_scene(Path("..") / "scenes" / "probe_scene.yaml")
+        print(repr((loaded.train.source, loaded.raw, loaded.source)))
+    """, cwd=tmp_path / "trains")
+    assert done.returncode == 0, done.stderr
+    train_source, raw, source = ast.literal_eval(done.stdout)
+    assert train_source == str(Path("..") / "trains" / "probe.yaml")
+    assert raw == SCENE and source == str(Path("..") / "scenes" / "probe_scene.yaml")
 
 
 def test_speed_table_and_number(tmp_path):
@@ -472,21 +482,38 @@ def test_speed_table_and_number(tmp_path):
     assert loader.load_scene(write_pair(tmp_path)[1]).speed == spec.Table((0.0,), (3.0,))
 
 
-def test_a_scene_text_takes_the_train_given_and_opens_no_file(tmp_path, monkeypatch):
-    """load_scene_text (what mta replay --resimulate reads from a bag): the scene's train: names a
-    file that must not be opened, whatever it is (absolute, a directory, a path in a string)."""
-    import builtins
-
-    train_text = (CONFIG / "trains" / "default.yaml").read_text()
-    scene_text = (CONFIG / "scenes" / "headland_turn.yaml").read_text()
-    opened = []
-    real_open = builtins.open
-    monkeypatch.setattr(builtins, "open", lambda *a, **k: opened.append(a[0]) or real_open(*a, **k))
+#: In a process of its own: every file opened while the texts load (an audit hook sees each open,
+#: by open(), io or pathlib), and then while a train file loads (so the hook is seen to work).
+OPENS = """
+    import json, re, sys
+    from mta_sim_ros.physics import loader
+    TRAIN, SCENE, NAMES = sys.argv[1:4]
+    train_text, scene_text = open(TRAIN).read(), open(SCENE).read()
+    opened, results = [], []
+    sys.addaudithook(lambda event, args: opened.append(str(args[0])) if event == "open" else None)
     train = loader.load_train_text(train_text, "recorded train")
-    for named in ("/etc/passwd", "..", '"/etc/shadow"', "../trains/default.yaml"):
+    for named in json.loads(NAMES):
         text = re.sub(r"(?m)^train:.*$", f"train: {named}", scene_text)
         scene = loader.load_scene_text(text, "recorded scene", train)
-        assert scene.train is train and scene.name == "headland_turn"
-    assert opened == []
+        results.append((scene.train is train, scene.name))
+    by_texts = list(opened)
+    loader.load_train(TRAIN)
+    print(json.dumps({"results": results, "by_texts": by_texts, "by_file": opened[len(by_texts):]}))
+"""
+
+
+def test_a_scene_text_takes_the_train_given_and_opens_no_file():
+    """load_scene_text (what mta replay --resimulate reads from a bag): the scene's train: names a
+    file that must not be opened, whatever it is (absolute, a directory, a path in a string)."""
+    train_path, scene_path = CONFIG / "trains" / "default.yaml", CONFIG / "scenes" / "headland_turn.yaml"
+    train_text, scene_text = train_path.read_text(), scene_path.read_text()
+    train = loader.load_train_text(train_text, "recorded train")
+    names = ["/etc/passwd", "..", '"/etc/shadow"', "../trains/default.yaml"]
+    done = python(OPENS, str(train_path), str(scene_path), json.dumps(names))
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout)
+    assert seen["results"] == [[True, "headland_turn"]] * len(names)
+    assert seen["by_texts"] == []
+    assert str(train_path) in seen["by_file"]  # the hook sees what the loader opens
     with pytest.raises(loader.SpecError, match="train: .* in top level of recorded scene must be given"):
         loader.load_scene_text(re.sub(r"(?m)^train:.*$", "", scene_text), "recorded scene", train)
