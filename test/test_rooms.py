@@ -8,7 +8,9 @@ into nothing private.
   functions read names only from files of the unit (numba freezes what they read into its cache,
   which is keyed on the unit's files alone).
 - No module imports another package's private names (``from x import _y``, ``x._y``), ours
-  included, and none assigns to an attribute of something it imported (monkeypatching).
+  included, and none assigns to an attribute of something it imported (monkeypatching); the
+  tests' files neither, nor do they take pytest's monkeypatch or unittest.mock's patch (a test
+  changes what it needs through a seam the code offers, or in a process of its own: child.py).
 - That the commands of the ROS-free rooms run where no ROS is installed at all is shown by
   test_no_ros.py, in a venv without ROS (not by blocking imports here, where the ROS share
   directories would still be read).
@@ -27,6 +29,7 @@ from mta_sim_ros import jit
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "mta_sim_ros"
 SOURCES = sorted(PACKAGE.rglob("*.py"))
+TEST_SOURCES = sorted(Path(__file__).resolve().parent.glob("*.py"))
 
 
 def test_the_import_contracts_hold():
@@ -154,6 +157,23 @@ def patches(tree: ast.Module) -> list[str]:
     return found
 
 
+def patching_tools(tree: ast.Module) -> list[str]:
+    """A function that takes pytest's ``monkeypatch`` fixture, a ``MonkeyPatch`` made by hand,
+    and unittest.mock's ``patch``."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            if "monkeypatch" in {a.arg for a in node.args.posonlyargs + node.args.args + node.args.kwonlyargs}:
+                found.append(f"line {node.lineno}: {node.name} takes monkeypatch")
+        elif isinstance(node, ast.ImportFrom):
+            found += [f"line {node.lineno}: from {node.module} import {a.name}" for a in node.names
+                      if a.name in ("MonkeyPatch", "patch")]
+        elif isinstance(node, ast.Attribute) and node.attr in ("MonkeyPatch", "patch") \
+                and isinstance(node.value, ast.Name) and node.value.id in ("pytest", "mock"):
+            found.append(f"line {node.lineno}: {ast.unparse(node)}")
+    return found
+
+
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_private_imports_and_no_monkeypatching(path):
     tree = ast.parse(path.read_text(), str(path))
@@ -161,10 +181,23 @@ def test_no_private_imports_and_no_monkeypatching(path):
     assert patches(tree) == []
 
 
+@pytest.mark.parametrize("path", TEST_SOURCES, ids=lambda p: p.name)
+def test_the_tests_import_nothing_private_and_patch_nothing(path):
+    tree = ast.parse(path.read_text(), str(path))
+    assert private_imports(tree) == []
+    assert patches(tree) == []
+    assert patching_tools(tree) == []
+
+
 def test_the_scans_see_what_they_look_for():
-    """The two scans above on code that does what they forbid."""
+    """The scans above on code that does what they forbid."""
     code = ast.parse("from mcap_ros2._dynamic import serialize_dynamic\nfrom .loader import _Loader\n"
                      "import numpy as np\nfrom .node import SimNode\nSimNode._on_tick = None\nnp.pi = 3\n"
                      "setattr(SimNode, 'x', 1)\nself_like = object()\nself_like.x = 1\n")
     assert private_imports(code) == ["mcap_ros2._dynamic", "loader._Loader"]
     assert len(patches(code)) == 3
+    tests = ast.parse("import pytest\nfrom unittest.mock import patch\nfrom unittest import mock\n"
+                      "def test_a(tmp_path, monkeypatch):\n    monkeypatch.setenv('A', '1')\n"
+                      "def test_b():\n    with pytest.MonkeyPatch.context() as mp, mock.patch('os.getcwd'):\n"
+                      "        pass\n")
+    assert len(patching_tools(tests)) == 4
