@@ -25,6 +25,8 @@ from mta_sim_ros.run.simulation import run_scene
 from mta_sim_ros import analysis
 from mta_sim_ros.tools.run import run_metadata
 
+pytestmark = pytest.mark.slow  # its bags are three shipped scenes run in full
+
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "config" / "scenes"
 

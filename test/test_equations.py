@@ -15,7 +15,8 @@ from mta_sim_ros.config import resolve_config_path
 from mta_sim_ros.physics import kernel, loader
 from mta_sim_ros.symbolic import equations
 
-TRAINS = ["single_tractor", "offset_hitch", "light_tractor_heavy_cart", "default", "long_train"]
+TRAINS = ["single_tractor", "offset_hitch", "light_tractor_heavy_cart", "default",
+          pytest.param("long_train", marks=pytest.mark.slow)]
 
 
 def load(name):

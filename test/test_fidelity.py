@@ -110,6 +110,7 @@ def stiffer(tr, factor):
                                                for c, r in zip(tr.carts, rear)))
 
 
+@pytest.mark.slow
 def test_slip_converges_to_dynamic_as_cornering_stiffness_grows():
     """Side slips are F_lat / C_alpha, so the slip level's departure from the no-slip paths falls
     like 1/C_alpha: each 10x in stiffness cuts the pose and hitch-angle errors 10x (within 7-13x)."""
@@ -163,6 +164,7 @@ def test_no_slip_tyre_forces_are_the_constraint_forces():
     assert abs(front) + np.sum(np.abs(rear)) > 100.0  # a turn with bent hitches needs real side forces
 
 
+@pytest.mark.slow
 def test_slip_level_default_method_survives_low_speed():
     """At low speed the tyres' lateral damping C/sqrt(V^2 + v0^2) gives eigenvalues of several
     hundred 1/s, past RK4's stability limit 2.785/h at h = 0.01 s. At 0.1 m/s with bent hitches

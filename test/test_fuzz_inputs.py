@@ -21,6 +21,7 @@ import tempfile
 import warnings
 from pathlib import Path
 
+import pytest
 import yaml
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
@@ -35,6 +36,8 @@ from mta_sim_ros.physics import loader, spec
 from mta_sim_ros.physics.guards import ModelValidityError
 from mta_sim_ros.run.simulation import Simulation
 from mta_sim_ros.validate import InputError
+
+pytestmark = pytest.mark.slow  # Hypothesis searches
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config"

@@ -10,6 +10,8 @@ import pytest
 
 from hostile import CONFIG, assert_refused, mta, recorded_run, short_scene
 
+pytestmark = pytest.mark.slow  # a process of its own for every case
+
 OLD_BAG = b"an earlier run's bag"
 
 

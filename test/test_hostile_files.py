@@ -11,6 +11,8 @@ import pytest
 from hostile import CONFIG, assert_refused, forge_bag, mta, recorded_run
 from mta_sim_ros.bag import BagWriter
 
+pytestmark = pytest.mark.slow  # a process of its own for every case
+
 TRAIN = (CONFIG / "trains" / "default.yaml").read_text()
 SCENE = (CONFIG / "scenes" / "headland_turn.yaml").read_text().replace(
     "train: ../trains/default.yaml", f"train: {CONFIG / 'trains' / 'default.yaml'}")

@@ -211,6 +211,7 @@ def rclpy_serialized(fill: int) -> dict[str, bytes]:
     return {t: bytes.fromhex(h) for t, h in json.loads(out.splitlines()[-1]).items()}
 
 
+@pytest.mark.slow
 def test_the_bag_writer_writes_what_rclpy_serializes(tmp_path):
     """What the project will write into bags (bag/writer.py through bag/cdr.py, from the installed
     definitions) is what an rclpy publisher puts on the wire, byte for byte, the padding zero.

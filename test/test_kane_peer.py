@@ -143,7 +143,7 @@ def random_train(rng, n: int):
 MODELS: dict = {}
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 4])
+@pytest.mark.parametrize("n", [1, 2, 3, pytest.param(4, marks=pytest.mark.slow)])
 def test_the_kernel_state_derivative_equals_kanes_equations(n):
     if n not in MODELS:
         MODELS[n] = kane_model(n)

@@ -279,6 +279,7 @@ SET_AFTER_IMPORT = """
 """
 
 
+@pytest.mark.slow
 def test_switches_keep_the_python_path():
     scene = headland()
     off = Simulation(scene, fidelity="dynamic", compiled=False)
@@ -291,6 +292,7 @@ def test_switches_keep_the_python_path():
     assert done.stdout.strip() == str(jit.ENABLED)  # numba ran there as here
 
 
+@pytest.mark.slow
 def test_without_numba_the_same_source_runs_as_python():
     """MTA_SIM_NO_JIT=1 at import: numba is not even imported, and a run gives the compiled run's
     numbers to the last bit."""

@@ -36,7 +36,7 @@ def random_train(rng, n: int):
 
 
 @pytest.mark.parametrize("speed", [3.0, 1.0, -1.0, -3.0])
-@pytest.mark.parametrize("train", [DEFAULT, OFFSET, LONG], ids=lambda t: t.name)
+@pytest.mark.parametrize("train", [DEFAULT, OFFSET, pytest.param(LONG, marks=pytest.mark.slow)], ids=lambda t: t.name)
 def test_straight_motion_has_the_closed_form_eigenvalues(train, speed):
     model = linear.linearize(train, "straight", speed)
     np.testing.assert_allclose(np.sort(model.eigenvalues.real), linear.straight_closed_form(train, speed),
@@ -46,6 +46,7 @@ def test_straight_motion_has_the_closed_form_eigenvalues(train, speed):
     assert len(grows) == (train.n - 1 if speed < 0 else 0)  # reversing: every hitch folds
 
 
+@pytest.mark.slow
 def test_random_trains_straight_eigenvalues():
     rng = np.random.default_rng(14)
     for n in range(1, 6):

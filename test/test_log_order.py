@@ -25,6 +25,7 @@ from mta_sim_ros.node.run_session import RunSession
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_the_offline_run_writes_each_tick_s_commands_before_its_outputs(tmp_path):
     bag = tmp_path / "run.mcap"
     done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "run", "--scene", "scenes/lane_change.yaml",

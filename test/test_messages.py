@@ -189,6 +189,7 @@ def test_templates_for_any_number_of_carts_build_and_decode(n):
     assert deserialize_message(data, MarkerArray) == rclpy_message(messages.MARKERS_TYPE, drawn)
 
 
+@pytest.mark.slow
 def test_templates_are_the_same_bytes_each_time_they_are_built():
     for n in range(1, 201):
         train, names = fake_train(n), [f"cart_{k}" for k in range(n)]
@@ -377,6 +378,7 @@ def test_diagnostics_refuse_unknown_levels(level):
         messages.encode_diagnostics(0.0, "x", level, "", {})
 
 
+@pytest.mark.slow
 def test_the_encoders_and_the_offline_run_need_no_ros(tmp_path):
     """With rclpy and every ROS message package made unimportable, the offline run's module
     loads and the encoders encode (the definitions are .msg files, read as text)."""

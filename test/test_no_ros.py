@@ -31,6 +31,8 @@ from mcap.reader import make_reader
 
 from mta_sim_ros.bag import message_definition
 
+pytestmark = pytest.mark.slow  # a venv built and filled by pip
+
 REPO = Path(__file__).resolve().parents[1]
 #: what `pip install .` needs of the checkout (setup.py reads package.xml, resource/, config/)
 SOURCES = ("setup.py", "setup.cfg", "package.xml", "resource", "config", "mta_sim_ros")

@@ -279,12 +279,14 @@ def _output(proc):
     return f'\n--- stdout ---\n{proc.stdout[-6000:]}\n--- stderr ---\n{proc.stderr[-6000:]}'
 
 
+@pytest.mark.slow
 def test_colcon_build_succeeds(colcon_install):
     _, install, proc = colcon_install
     assert proc.returncode == 0, f'colcon build failed{_output(proc)}'
     assert install.is_dir(), _output(proc)
 
 
+@pytest.mark.slow
 def test_colcon_installs_executables_for_ros2_run(colcon_install):
     _, install, proc = colcon_install
     assert proc.returncode == 0, _output(proc)
@@ -297,6 +299,7 @@ def test_colcon_installs_executables_for_ros2_run(colcon_install):
     assert not (install / 'bin' / 'mta').exists(), 'scripts must not go to bin/'
 
 
+@pytest.mark.slow
 def test_colcon_installs_share_files(colcon_install):
     src, install, proc = colcon_install
     assert proc.returncode == 0, _output(proc)
@@ -309,6 +312,7 @@ def test_colcon_installs_share_files(colcon_install):
         assert (share / rel).is_file(), f'{rel} not installed to {share / rel}'
 
 
+@pytest.mark.slow
 def test_colcon_installs_the_launch_files_and_the_views(colcon_install):
     """launch/*.launch.py to share/<pkg>/launch (where `ros2 launch mta_sim_ros X` looks), and
     every file of config/ (the RViz config, the Foxglove layout, the loopback profile too)."""
@@ -322,6 +326,7 @@ def test_colcon_installs_the_launch_files_and_the_views(colcon_install):
     assert not missing, f'not installed to {share}: {missing}'
 
 
+@pytest.mark.slow
 def test_launch_files_name_only_what_the_install_has(colcon_install):
     """Each mta_sim_ros executable a launch file starts is in the install's lib/mta_sim_ros, and
     each file it joins under share/mta_sim_ros (params file, RViz config, included launch files)
@@ -345,6 +350,7 @@ def test_launch_files_name_only_what_the_install_has(colcon_install):
             assert (share / Path(*joined.parts)).is_file(), f'{joined.where}: {joined.parts} not in {share}'
 
 
+@pytest.mark.slow
 def test_colcon_installs_every_module(colcon_install):
     """Every .py under mta_sim_ros/ is installed (a subpackage without
     __init__.py would silently be left out by find_packages)."""
@@ -358,6 +364,7 @@ def test_colcon_installs_every_module(colcon_install):
         f'not installed by colcon (missing __init__.py in a subpackage?): {missing}')
 
 
+@pytest.mark.slow
 def test_colcon_installs_the_vendored_message_definitions(colcon_install):
     """bag/msg (the .msg files a bag is written with where no ROS share dir has them, their
     LICENSE and README) is package data: installed beside the modules."""
@@ -370,6 +377,7 @@ def test_colcon_installs_the_vendored_message_definitions(colcon_install):
     assert not missing, f'not installed by colcon (setup.py package_data): {missing}'
 
 
+@pytest.mark.slow
 def test_installed_mta_script_runs(colcon_install, tmp_path):
     """The generated launcher imports mta_sim_ros from the install space."""
     _, install, proc = colcon_install

@@ -45,6 +45,7 @@ def run_bag(tmp_path_factory) -> Path:
 # -- re-simulation (no ROS) ----------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_resimulating_a_run_bag_is_exact_and_another_method_deviates(run_bag):
     done = mta("replay", run_bag, "--resimulate")
     assert done.returncode == 0, done.stderr
@@ -69,6 +70,7 @@ def test_resimulating_a_run_bag_is_exact_and_another_method_deviates(run_bag):
     assert 1e-5 < r.outputs["hitch_poses"].largest < 0.1  # first order at 10 ms: mm, not metres
 
 
+@pytest.mark.slow
 def test_a_single_changed_value_in_the_bag_is_found(run_bag, tmp_path):
     """Planted error: one traction_power sample altered by one unit in the last place."""
     import struct
@@ -100,6 +102,7 @@ def test_a_single_changed_value_in_the_bag_is_found(run_bag, tmp_path):
     assert done.returncode == 0 and "deviations found" in done.stdout
 
 
+@pytest.mark.slow
 def test_resimulate_errors_exit_1(tmp_path):
     plain = tmp_path / "plain.mcap"
     with BagWriter(str(plain)) as out:

@@ -15,6 +15,8 @@ from rosbags.highlevel import AnyReader
 from mta_sim_ros.bag import read_messages, read_metadata
 from mta_sim_ros.physics.loader import load_train
 
+pytestmark = pytest.mark.slow  # `mta run` as processes
+
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_TRAIN = REPO / "config" / "trains" / "default.yaml"
 

@@ -112,6 +112,7 @@ def traced_peak(fn) -> tuple[int, int]:
     return peak, after
 
 
+@pytest.mark.slow
 def test_rhs_memory_is_linear_in_the_carts_and_released():
     peaks = {}
     for n in (100, 200, 400):
@@ -129,6 +130,7 @@ def test_rhs_memory_is_linear_in_the_carts_and_released():
     assert per_cart < 150, peaks
 
 
+@pytest.mark.slow
 def test_a_run_keeps_no_history():
     """Traced memory after 1000 more ticks of advance + outputs is what it was after 200: cost per
     simulated second cannot grow from anything kept per tick (the kernels run as plain Python here,
@@ -156,6 +158,7 @@ def test_a_run_keeps_no_history():
     assert grown < 4096, f"{grown} bytes more after 1000 ticks"
 
 
+@pytest.mark.slow
 def test_the_compiled_kernels_free_every_array_they_make():
     """The compiled kernels' arrays live in numba's runtime, which tracemalloc does not see: count
     them with numba's allocation statistics (NUMBA_NRT_STATS=1, in a process of its own). Over

@@ -81,6 +81,7 @@ def test_a_grid_runs_every_scheme_on_every_scene(serial):
     assert turn[1.0, 7.0]["cart3_offtracking_m"] > turn[1.0, 5.0]["cart3_offtracking_m"]
 
 
+@pytest.mark.slow
 def test_a_sweep_on_the_local_cluster_equals_it_run_serially(serial, tmp_path):
     spec, expected = serial
     result = engine.run_sweep(spec, tmp_path / "cluster", workers=2, quiet=True)
@@ -145,6 +146,7 @@ class _nothing:
         return False
 
 
+@pytest.mark.slow
 def test_a_sweep_on_an_external_cluster_gives_the_same_rows(serial, cluster, tmp_path):
     spec, expected = serial
     scheduler_file, client = cluster
@@ -159,6 +161,7 @@ def test_a_sweep_on_an_external_cluster_gives_the_same_rows(serial, cluster, tmp
     same_rows(pq.read_table(by_address.results), expected)
 
 
+@pytest.mark.slow
 def test_the_cluster_and_the_local_cluster_listen_on_loopback_only(serial, cluster, tmp_path):
     """The network rule for the sweep's processes: every TCP and UDP socket of the scheduler, the
     nannies and the workers (external, and the embedded LocalCluster's) is bound to 127.0.0.1."""
@@ -190,6 +193,7 @@ MANY = BASE.replace("values: [1.0, 2.0]", "values: [0.5, 0.75, 1.0, 1.25, 1.5, 1
     "batch: 2", "batch: 1")
 
 
+@pytest.mark.slow
 def test_killing_a_worker_loses_nothing(cluster, tmp_path):
     """32 one-run tasks on two workers; one worker process is killed (SIGKILL) once some parts are
     written: its task runs again elsewhere, and the rows equal a serial sweep's."""
@@ -213,6 +217,7 @@ def test_killing_a_worker_loses_nothing(cluster, tmp_path):
     same_rows(pq.read_table(done["result"].results), pq.read_table(expected.results))
 
 
+@pytest.mark.slow
 def test_a_killed_sweep_resumes_without_running_what_it_finished(tmp_path):
     """``mta sweep`` killed (SIGKILL) after some parts: the parts stay as they were, the second call
     runs only the missing schemes, and the results equal an uninterrupted sweep's."""
@@ -335,6 +340,7 @@ def test_missing_files_and_bad_yaml_are_refused(tmp_path, capsys):
     assert "absent.yaml" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_run_asked_for_writes_its_bag_and_the_bag_repeats_the_row(tmp_path):
     """``bags: [3]``: run 3 (scheme 1, the headland turn) also as ``mta run`` writes it, from its
     exported files; mta analyze's off-tracking of that bag (its own search, on the recorded poses)

@@ -23,6 +23,8 @@ from mta_sim_ros.sweep import spec as sweep_spec
 from mta_sim_ros.sweep.export import export
 from mta_sim_ros.validate import InputError
 
+pytestmark = pytest.mark.slow  # sweeps run for its fixtures, figures drawn
+
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config"
 

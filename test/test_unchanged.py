@@ -28,6 +28,8 @@ from mcap.reader import make_reader
 from mta_sim_ros import cli
 from mta_sim_ros.messages.topics import FRAME_TOPICS, qualified
 
+pytestmark = pytest.mark.slow  # every shipped scene run by the code of before and of now
+
 REPO = Path(__file__).resolve().parents[1]
 ONE_PHYSICS = "cecef7b730da61fa89761be26112319cd89716ad"
 HOUSE = "555ebc7b202a8917f3b5f841e8b9f89b3d55bf7b"
