@@ -234,7 +234,9 @@ def test_a_killed_sweep_resumes_without_running_what_it_finished(tmp_path):
     proc.stderr.close()
     kept = {p.name: p.read_bytes() for p in out.glob("parts/*.parquet")}
     assert 4 <= len(kept) < 32
-    assert not list(out.glob("parts/*.tmp")) or True  # a part cut short is only ever a .tmp, never read
+    # a part cut short is only ever a .tmp (which the resume does not read): every .parquet is whole
+    assert {p.suffix for p in out.glob("parts/*")} <= {".parquet", ".tmp"}
+    assert all(pq.read_table(out / "parts" / name).num_rows > 0 for name in kept)
     spec = sweep_spec.load(spec_path)
     result = engine.run_sweep(spec, out, serial=True, quiet=True)
     assert result.resumed == len(kept) and result.ran == 32 - len(kept)
