@@ -17,8 +17,9 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
     largest hitch angle, smallest jackknife margin
     off-tracking of cart k                    the largest distance of B_k(t) from the polyline the
                                               tractor's axle B_1 traced up to t, samples whose
-                                              nearest point is an end left out: analyze.py's
-                                              definition (``offsets.path_offsets``, growing)
+                                              nearest point is an end left out: mta analyze's
+                                              definition (analysis.track_geometry;
+                                              ``offsets.path_offsets``, growing)
     swept width                               the width of the envelope the outlines sweep, across
                                               the tractor's path: largest left minus largest right
                                               signed distance of every cart's box corners and

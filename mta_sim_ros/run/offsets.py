@@ -13,14 +13,14 @@ from ..jit import entry, jitable
 def path_offsets(px, py, qx, qy, growing):
     """(signed distance of each point q_i from the polyline p, > 0 left of its direction, m; whether
     its nearest point is an end of the polyline). With ``growing`` point i sees the vertices 0..i
-    only (the ground the path had traced by then: analyze.distance_to_path with upto = i, whose
-    exact k-d tree search the tests hold this to); else the whole polyline.
+    only (the ground the path had traced by then: analysis.track_geometry.distance_to_path with
+    upto = i, whose exact k-d tree search the tests hold this to); else the whole polyline.
 
     The points are taken in order, each searched from the segment nearest the point before, walking
     on while the next segment is not farther: a point that moves along the path (a cart's axle or
     corner along the tractor's path) finds its nearest segment, and a path that comes back near
     itself is not taken for it. The end segments are extended to lines: beyond an end, a point's
-    distance is from that line (``at_end`` says so; analyze's distance is then to the end vertex)."""
+    distance is from that line (``at_end`` says so; mta analyze's distance is then to the end vertex)."""
     m = px.shape[0]
     count = qx.shape[0]
     out = np.empty(count)
