@@ -1,32 +1,41 @@
 """The benchmarks: measurements, not tests, of a source checkout (not installed with the package,
 as scipy keeps its ``benchmarks/`` beside the package). Run one from the repository root with
-``python -m benchmarks NAME [options]`` (``make bench BENCH="NAME options"``). Each prints its figures and writes them to Markdown
-(``tick-parts`` only prints). One module a benchmark:
+``python -m benchmarks NAME [options]``. Each prints its figures and writes them to Markdown
+(``tick-parts`` only prints). One module a benchmark, in four folders by what they measure:
 
-realtime        the node at real-time factor 1, steered over DDS by a player process (realtime.py,
-                player.py; ``--stages``: the node's tick profile, stages.py)
-method          the integrators on one scene at the node's tick: error against cost, the default to choose
-work-precision  error against CPU time of every integrator on six scenes, node and free mode
-stability       where every method's steps stop being accurate, and where they blow up
-scaling         the node's tick against carts and publish rate, long runs, memory (scaling.py,
-                scaling_report.py)
-fidelity        each fidelity level's error against slip and its cost
-tick-parts      the tick's parts in two forms, side by side
-kinks           every method across the right-hand side's kinks, split and not
-sigkill         the simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor
-flood           the node under a flood of steering commands: deadline misses, tick percentiles, lag,
-                memory (flood.py, flooder.py)
-sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
-reversing       the reversing controller: speeds, train lengths and offsets where it holds and where it folds
+accuracy/     error against cost
+  method          the integrators on one scene at the node's tick: error against cost, the default to choose
+  work-precision  error against CPU time of every integrator on six scenes, node and free mode
+  stability       where every method's steps stop being accurate, and where they blow up
+  kinks           every method across the right-hand side's kinks, split and not
+  fidelity        each fidelity level's error against slip and its cost
+throughput/   how much is done in a second
+  scaling         the node's tick against carts and publish rate, long runs, memory (scaling_report.py
+                  writes its report)
+  tick-parts      the tick's parts in two forms, side by side
+  sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
+node/         the running node over DDS
+  realtime        the node at real-time factor 1, steered by a player process (player.py; ``--stages``: the
+                  node's tick profile, stages.py)
+  sigkill         the simulated time a SIGKILL of the node loses from its bag, per rate and real-time factor
+  flood           the node under a flood of steering commands: deadline misses, tick percentiles, lag,
+                  memory (flooder.py)
+controllers/  the example controllers
+  reversing       the reversing controller: speeds, train lengths and offsets where it holds and where it folds
 
 Shared: common.py (report header and writing, scene paths, child processes' environment, timing
 side by side), runs.py (node-mode runs of a scene with held inputs, hitch points, errors against a
-reference). Every process started here that talks DDS gets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
-and a domain of its own.
+reference), stages.py (the node's tick profile). Every process started here that talks DDS gets
+ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a domain of its own.
 """
 from __future__ import annotations
 
-#: the benchmarks' modules; each has HELP, add_arguments(parser) and main(args); the command is
-#: the module's name with '-' for '_'
-MODULES = ("realtime", "method", "work_precision", "stability", "scaling", "fidelity", "tick_parts", "kinks",
-           "sigkill", "flood", "sweep", "reversing")
+#: the benchmarks: the command (the module's name with '-' for '_') -> its module in this package;
+#: each has HELP, add_arguments(parser) and main(args)
+MODULES = {
+    "method": "accuracy.method", "work_precision": "accuracy.work_precision", "stability": "accuracy.stability",
+    "kinks": "accuracy.kinks", "fidelity": "accuracy.fidelity",
+    "scaling": "throughput.scaling", "tick_parts": "throughput.tick_parts", "sweep": "throughput.sweep",
+    "realtime": "node.realtime", "sigkill": "node.sigkill", "flood": "node.flood",
+    "reversing": "controllers.reversing",
+}

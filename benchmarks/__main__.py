@@ -17,7 +17,7 @@ def build_parser() -> argparse.ArgumentParser:
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="bench", required=True, metavar="BENCH")
     for name in MODULES:
-        module = importlib.import_module(f".{name}", __package__)
+        module = importlib.import_module(f".{MODULES[name]}", __package__)
         p = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.__doc__,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_arguments(p)

@@ -61,7 +61,7 @@ def header_lines(title: str, args) -> list[str]:
     """The report's title and the table of how it was made."""
     m = machine()
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    source = "benchmarks/" + args.bench_func.__module__.rsplit(".", 1)[1] + ".py"
+    source = args.bench_func.__module__.replace(".", "/") + ".py"
     return [
         f"# {title}", "",
         f"Written by `{source}`; re-run the command to refresh it.", "",

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 import trains
 
-from benchmarks.scaling import ENDLESS, bench_scene, default_train, scaled_train, steering_amplitude
+from benchmarks.throughput.scaling import ENDLESS, bench_scene, default_train, scaled_train, steering_amplitude
 from mta_sim_ros.physics import kernel
 from mta_sim_ros.physics.dynamics import Model
 from mta_sim_ros.physics.steady import steady_circle
@@ -167,7 +167,7 @@ def test_the_compiled_kernels_free_every_array_they_make():
         import math
         from numba.core.runtime import rtsys
         from mta_sim_ros.run.simulation import Simulation
-        from benchmarks.scaling import ENDLESS, bench_scene, scaled_train
+        from benchmarks.throughput.scaling import ENDLESS, bench_scene, scaled_train
         sim = Simulation(bench_scene(scaled_train(3), 100.0, duration=ENDLESS))
         assert sim.compiled
 

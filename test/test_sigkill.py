@@ -13,7 +13,7 @@ from __future__ import annotations
 import pytest
 from dds import DOMAIN, REPO
 
-from benchmarks.sigkill import ClockListener, measure
+from benchmarks.node.sigkill import ClockListener, measure
 from mta_sim_ros.node.recorder import BACKLOG_SECONDS, FLUSH_SECONDS
 
 SCENE = REPO / "config" / "scenes" / "headland_turn.yaml"

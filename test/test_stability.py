@@ -26,7 +26,7 @@ from benchmarks.runs import (
     simulation,
     with_tolerances,
 )
-from benchmarks.work_precision import crossing
+from benchmarks.accuracy.work_precision import crossing
 from mta_sim_ros.integrate import make_stepper
 from mta_sim_ros.integrate.stability import (
     REAL_AXIS_LIMIT,

@@ -44,8 +44,8 @@ from pathlib import Path
 from mta_sim_ros.validate import COUNT, DURATION, MAX_TICKS, Range, number_arg, output_file, path_arg
 
 from . import scaling_report
-from .common import BENCHMARKS, header_lines, log, ros_env
-from .stages import STAGES
+from ..common import BENCHMARKS, header_lines, log, ros_env
+from ..stages import STAGES
 
 HELP = "tick cost vs carts and publish rate; cost per simulated second vs run length; peak memory of a 1-hour run (offline)"
 CARTS = (1, 2, 3, 5, 10, 20, 50, 100)
@@ -181,7 +181,7 @@ class SessionTicks:
         from mta_sim_ros.node.params import PARAMS
         from mta_sim_ros.node.run_session import RunSession
 
-        from .stages import StageProfile
+        from ..stages import StageProfile
 
         cfg = {p.name: p.default for p in PARAMS}
         cfg.update(scene_file=str(write_scene(folder, n, rate, duration)), bag_dir=str(folder / "bags"),
@@ -223,7 +223,7 @@ def measure_case(n: int, rate: float, ticks: int, paced: bool = False, freeze: b
 
     import numpy as np
 
-    from .stages import column
+    from ..stages import column
 
     with tempfile.TemporaryDirectory(prefix="mta_scaling_") as folder:
         run = SessionTicks(n, rate, Path(folder))
@@ -320,7 +320,7 @@ def long_run(duration: float, out_json: str) -> int:
 def run_long_child(duration: float) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "long.json"
-        subprocess.run([sys.executable, "-m", "benchmarks.scaling", "--long-run", str(duration),
+        subprocess.run([sys.executable, "-m", "benchmarks.throughput.scaling", "--long-run", str(duration),
                         "--json", str(out)], check=True, env=ros_env(os.environ.get("ROS_DOMAIN_ID", "0")))
         return json.loads(out.read_text())
 
@@ -369,7 +369,7 @@ def main(args) -> int:
 def _child_main(argv: list[str]) -> int:
     import argparse
 
-    p = argparse.ArgumentParser(prog="python -m benchmarks.scaling")
+    p = argparse.ArgumentParser(prog="python -m benchmarks.throughput.scaling")
     p.add_argument("--long-run", type=float, required=True)
     p.add_argument("--json", required=True)
     a = p.parse_args(argv)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from mta_sim_ros.validate import COUNT, PUBLISH_RATE, Range, number_arg, output_file, path_arg
 
-from .common import BENCHMARKS, DEFAULT_SCENE, header_lines, resolve_scene, side_by_side, write_report
+from ..common import BENCHMARKS, DEFAULT_SCENE, header_lines, resolve_scene, side_by_side, write_report
 
 HELP = "integrators offline: error against a reference vs CPU time per tick"
 ACCURACY_TARGET = 1e-3  # m: every hitch point within this of the reference
@@ -81,7 +81,7 @@ def main(args) -> int:
 
     from mta_sim_ros.physics.loader import SpecError, load_scene
 
-    from .runs import Case
+    from ..runs import Case
 
     try:
         scene = load_scene(resolve_scene(args.scene))

@@ -19,7 +19,7 @@ import time
 
 from mta_sim_ros.validate import output_file, path_arg
 
-from .common import BENCHMARKS, REPO, header_lines, resolve_scene, table, write_report
+from ..common import BENCHMARKS, REPO, header_lines, resolve_scene, table, write_report
 
 HELP = "every method across the kinks of the right-hand side, split and not"
 REF_TOL = 1e-12
@@ -72,7 +72,7 @@ def shipped_table() -> list[str]:
     """The default method of every shipped scene, split and across, against its split reference."""
     from mta_sim_ros.physics.loader import load_scene
 
-    from .runs import Case
+    from ..runs import Case
 
     rows = []
     for path in sorted((REPO / "config" / "scenes").glob("*.yaml")):
@@ -91,7 +91,7 @@ def shipped_table() -> list[str]:
 def main(args) -> int:
     from mta_sim_ros.physics.loader import load_scene
 
-    from .runs import Case
+    from ..runs import Case
 
     case = Case(load_scene(resolve_scene(args.scene)))
     started = time.time()

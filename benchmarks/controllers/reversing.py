@@ -18,7 +18,7 @@ import numpy as np
 
 from mta_sim_ros.validate import output_file, path_arg
 
-from .common import header_lines, table, write_report
+from ..common import header_lines, table, write_report
 
 HELP = "the reversing controller: speeds, train lengths and offsets where it holds and where it folds"
 SPEEDS = (-0.5, -1.0, -2.0, -3.0, -5.0, -8.0)

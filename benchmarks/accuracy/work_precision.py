@@ -27,7 +27,7 @@ import numpy as np
 
 from mta_sim_ros.validate import COUNT, PUBLISH_RATE, number_arg, output_folder, path_arg
 
-from .common import BENCHMARKS, REPO, header_lines, log, side_by_side
+from ..common import BENCHMARKS, REPO, header_lines, log, side_by_side
 
 HELP = "error vs CPU time of every integrator on six scenes, node and free mode"
 ADAPTIVE = ("RK45", "DOP853", "LSODA", "Radau", "BDF")
@@ -86,7 +86,7 @@ def peer_run(case, rtol, atol):
     """solve_ivp(RK45) once per tick with the held command: what a user would write for the node."""
     from scipy.integrate import solve_ivp
 
-    from .runs import Run
+    from ..runs import Run
 
     model = case.model
     Y = np.empty((case.ticks + 1, len(case.y0)))
@@ -109,7 +109,7 @@ def free_run(case, method, step, rtol, atol):
     from mta_sim_ros.integrate import FIXED_METHODS, make_stepper
     from mta_sim_ros.run.simulation import speed_setpoint, table_value
 
-    from .runs import Run
+    from ..runs import Run
 
     model, scene = case.model, case.scene
 
@@ -181,7 +181,7 @@ def measure(case, quick: bool, repeats: int, compiled: bool) -> tuple[list[dict]
 def main(args) -> int:
     from mta_sim_ros import jit
 
-    from .runs import cases
+    from ..runs import cases
 
     out_dir = Path(args.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -307,7 +307,7 @@ def report(args, results, refdiff, summary, figs, jit_note, repeats) -> list[str
 
 def setup(args, results, cross_checked: bool, figs, jit_note, repeats) -> list[str]:
     """What was run and how it was measured."""
-    from .runs import SCENES
+    from ..runs import SCENES
 
     fixed = fixed_methods()
     tick = 1.0 / args.rate

@@ -16,7 +16,7 @@ BATCH = 1e-3  # s between two bursts of the commands due
 
 
 def main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.flooder")
+    p = argparse.ArgumentParser(prog="python -m benchmarks.node.flooder")
     p.add_argument("--hz", type=float, required=True)
     p.add_argument("--seconds", type=float, required=True)
     p.add_argument("--result", required=True)

@@ -6,8 +6,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .common import log
-from .stages import STAGES
+from ..common import log
+from ..stages import STAGES
 
 TARGET_SHARE = 0.02  # the issue: the default method and step under 2 % of the 100 Hz tick
 TARGET_RSS_MB = 200.0
@@ -138,7 +138,7 @@ def introduction(pngs: list[str]) -> list[str]:
     """What is measured, and the definitions."""
     return [
         "Offline (no DDS): the node's own tick, `run_session.RunSession.tick`, on a scene file written for each "
-        "train, with the node's default parameters (see the docstring of `benchmarks/scaling.py`): "
+        "train, with the node's default parameters (see the docstring of `benchmarks/throughput/scaling.py`): "
         "advance (rk4, + validity check), outputs, the messages' CDR bytes (+ markers at 10 Hz), publish (a "
         "no-op here: no DDS), the bytes handed to the bag writer's thread (MCAP, as in the node). The two "
         "commands a player sends go in before each tick through `RunSession.command`, outside the tick's time. "

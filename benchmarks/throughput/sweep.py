@@ -29,7 +29,7 @@ from pathlib import Path
 
 from mta_sim_ros.validate import COUNT, number_arg, output_file, path_arg
 
-from .common import header_lines, side_by_side, table, write_report
+from ..common import header_lines, side_by_side, table, write_report
 
 HELP = "a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time"
 SCENE = "scenes/headland_turn.yaml"

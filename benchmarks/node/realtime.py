@@ -24,7 +24,7 @@ from pathlib import Path
 
 from mta_sim_ros.validate import DURATION, PUBLISH_RATE, Range, number_arg, output_file, output_folder, path_arg
 
-from .common import (
+from ..common import (
     BENCHMARKS,
     DEFAULT_SCENE,
     REPO,
@@ -75,7 +75,7 @@ def run_processes(args, scene_path: str, work: Path, tick_cpu: int) -> tuple[str
         node_cmd = [sys.executable, "-m", "mta_sim_ros.cli", "node", "--params-file", str(params)]
     node = subprocess.Popen(node_cmd, env=env, stdout=(work / "node.log").open("w"), stderr=subprocess.STDOUT,
                             cwd=REPO)
-    player = subprocess.Popen([sys.executable, "-m", "benchmarks.player", "--scene", scene_path,
+    player = subprocess.Popen([sys.executable, "-m", "benchmarks.node.player", "--scene", scene_path,
                                "--duration", repr(args.duration), "--result", str(work / "player.json")],
                               env=env, cwd=REPO, preexec_fn=lambda: os.sched_setaffinity(0, player_cpus))
     deadline = time.monotonic() + args.duration * 1.5 + 120.0
@@ -167,7 +167,7 @@ def main(args) -> int:
     if args.stages and (work / "stages.npy").exists():
         import numpy as np
 
-        from .stages import stage_report
+        from ..stages import stage_report
 
         text, md = stage_report(np.load(work / "stages.npy"))
         print("where the tick time goes (the node's tick profile):")

@@ -33,7 +33,7 @@ from pathlib import Path
 from mta_sim_ros.node.params import argument
 from mta_sim_ros.validate import COUNT, DURATION, PUBLISH_RATE, Range, number_arg, output_file, path_arg
 
-from .common import (
+from ..common import (
     BENCHMARKS,
     DEFAULT_SCENE,
     REPO,

@@ -33,7 +33,7 @@ from pathlib import Path
 from mta_sim_ros.node.params import argument
 from mta_sim_ros.validate import DURATION, MAX_DURATION, Range, number_arg, output_file, path_arg
 
-from .common import (
+from ..common import (
     BENCHMARKS,
     DEFAULT_SCENE,
     REPO,
@@ -169,7 +169,7 @@ def run_one(label: str, seconds: float, flood_hz: float, args, scene: str, work:
         start = time.monotonic()
         if flood_hz > 0:
             flooder = subprocess.Popen(
-                [sys.executable, "-m", "benchmarks.flooder", "--hz", repr(flood_hz),
+                [sys.executable, "-m", "benchmarks.node.flooder", "--hz", repr(flood_hz),
                  "--seconds", repr(seconds), "--result", str(work / "flood.json")],
                 env=env, stdout=(work / "flooder.log").open("w"), stderr=subprocess.STDOUT, cwd=REPO)
         rss = [(start, rss_mib(node.pid))]

@@ -20,7 +20,7 @@ import numpy as np
 
 from mta_sim_ros.validate import output_folder, path_arg
 
-from .common import BENCHMARKS, REPO, header_lines, log, write_report
+from ..common import BENCHMARKS, REPO, header_lines, log, write_report
 
 HELP = "largest accurate and first unstable step of every method on six scenes"
 RATE = 25.0  # Hz: a 40 ms tick, so that fixed steps can pass the stiff actuator's limits
@@ -136,7 +136,7 @@ def main(args) -> int:
     from mta_sim_ros.integrate.tableau import TABLEAUX
     from mta_sim_ros.physics.guards import fast_modes
 
-    from .runs import cases
+    from ..runs import cases
 
     fixed = tuple(TABLEAUX)
     counts, tols = COUNTS[args.quick], TOLS[args.quick]

@@ -21,7 +21,7 @@ def loop_period(scene) -> float:
 
 
 def main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.player")
+    p = argparse.ArgumentParser(prog="python -m benchmarks.node.player")
     p.add_argument("--scene", required=True)
     p.add_argument("--duration", type=float, required=True)
     p.add_argument("--result", required=True)

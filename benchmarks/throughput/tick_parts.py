@@ -14,7 +14,7 @@ import statistics
 
 from mta_sim_ros.validate import COUNT, number_arg
 
-from .common import DEFAULT_SCENE, resolve_scene, side_by_side
+from ..common import DEFAULT_SCENE, resolve_scene, side_by_side
 
 HELP = ("the node tick's parts in two forms (generic against template, Python against compiled), "
         "side by side offline")

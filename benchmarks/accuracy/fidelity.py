@@ -18,7 +18,7 @@ import numpy as np
 
 from mta_sim_ros.validate import COUNT, number_arg, output_file, path_arg
 
-from .common import header_lines, table, write_report
+from ..common import header_lines, table, write_report
 
 HELP = "each fidelity level's error against slip and its cost, per scene"
 SCENES = "config/scenes"

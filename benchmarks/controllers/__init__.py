@@ -1,0 +1,1 @@
+"""Benchmarks of the example controllers: where backing up holds (reversing)."""
