@@ -240,6 +240,29 @@ def _meaning(names: list, A: np.ndarray, vector: np.ndarray, value: complex) -> 
     return f"{name}: {'stable' if value.real < 0 else 'unstable'}"
 
 
+def point_row(train, cart: int, offset: float = 0.0) -> np.ndarray:
+    """C with C x = the lateral offset (y, left of straight motion along +x) of the point ``offset``
+    m ahead of cart ``cart``'s axle B_k on its axis (k counted from 0), to first order in the
+    straight model's x = (y, th_1, phi_2..phi_n, psi): y_P = y - sum over the segments from A_1 back
+    to B_k of their length times their heading (A_j to B_j, then B_j to A_{j+1}) + offset th_k, with
+    th_k = th_1 - phi_2 - ... - phi_k."""
+    row = np.zeros(train.n + 2)
+    row[0] = 1.0
+    for k in range(cart + 1):
+        c = train.carts[k]
+        length = c.length - offset if k == cart else c.length + c.hitch_offset  # times -th_k
+        row += length * heading_row(train, k) * -1.0
+    return row
+
+
+def heading_row(train, cart: int) -> np.ndarray:
+    """D with D x = th_k, the heading of cart ``cart`` (from 0): th_1 - phi_2 - ... - phi_k."""
+    row = np.zeros(train.n + 2)
+    row[1] = 1.0
+    row[2:cart + 2] = -1.0
+    return row
+
+
 def turn_closed_form(train, speed: float, steering: float) -> list[complex]:
     """The eigenvalues about the steady turn of ``steering`` (either side): the hitch modes
     -Omega R_Bk / l_k (an axle's speed over its cart's length; k = 2..n), the orbit +-i |Omega| of
