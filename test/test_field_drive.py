@@ -2,8 +2,9 @@
 point on the route. Its parts against closed forms (the working point's output row, the inverted
 chain against physics/steady.py's circles, the power on a straight swath against the resistances
 times the speed), the closed loop's behaviour (an offset decays, a steady arc is held on its radius,
-the command never passes the actuator's angle, reversing holds the line), its guards (a jackknife,
-leaving the route: a verdict and a reason), and the compiled loop against its plain-Python twin."""
+the command never passes the guarded angle forward, reversing holds the line), its guards (a
+jackknife without the forward guard, leaving the route: a verdict and a reason), and the compiled
+loop against its plain-Python twin."""
 from __future__ import annotations
 
 import math
@@ -13,6 +14,7 @@ import pytest
 
 from mta_sim_ros.config import resolve_config_path
 from mta_sim_ros.controllers.implement import design, drive, loop
+from mta_sim_ros.field.turning import margin_at
 from mta_sim_ros.physics import loader
 from mta_sim_ros.physics.dynamics import Model
 from mta_sim_ros.physics.spec import GRAVITY
@@ -109,14 +111,18 @@ def test_a_steady_arc_is_held_on_its_radius(radius):
     np.testing.assert_allclose(psi, steady_pose(DEFAULT, radius)[2], atol=2e-3)
 
 
-def test_the_command_never_passes_the_actuators_angle():
-    """3 m to the side and a tight turn: the command reaches max_angle and stays within it."""
+def test_the_command_never_passes_the_guarded_angle_forward():
+    """3 m to the side and a tight turn: forward, the command reaches the guarded steering and
+    stays within it, whose steady circle keeps every hitch hitch_margin (10 deg) from its limit;
+    that is below the actuator's max_angle."""
     result = run([fr.line(60.0), fr.arc(8.0, math.pi), fr.line(60.0)], start_offset=3.0)
     command = result.rows[:, loop.T_COMMAND]
-    limit = DEFAULT.actuator.max_angle
-    assert np.max(np.abs(command)) == pytest.approx(limit, rel=1e-12)
-    assert np.all(np.abs(command) <= limit)
-    assert np.all(np.abs(result.rows[:, loop.T_STEERING]) <= limit + 1e-12)
+    guarded = result.controller.forward_angle
+    assert guarded < DEFAULT.actuator.max_angle
+    assert margin_at(DEFAULT, guarded) == pytest.approx(math.radians(10.0), abs=1e-9)
+    assert np.max(np.abs(command)) == pytest.approx(guarded, rel=1e-12)
+    assert np.all(np.abs(command) <= guarded)
+    assert np.all(np.abs(result.rows[:, loop.T_STEERING]) <= guarded + 1e-12)
 
 
 def test_power_on_a_worked_swath_is_the_resistances_times_the_speed():
@@ -145,18 +151,26 @@ def test_reversing_holds_the_line():
     back = result.rows[:, loop.T_STATION] > 40.0
     assert np.all(trace.speed[back] < 0.0)
     assert np.max(np.abs(trace.tracking_error)) < 0.05
+    assert np.all(np.abs(result.rows[:, loop.T_COMMAND]) <= DEFAULT.actuator.max_angle)
     assert trace.implement[-1, 0] == pytest.approx(100.0 + 30.0 - 80.0, abs=0.5)
 
 
-def test_an_impossible_turn_stops_the_run_with_its_reason():
-    """A 3 m circle for the working point (tighter than any steady turn): the run stops, says why,
-    and its trace ends where it stopped."""
-    result = run([fr.line(40.0), fr.arc(3.0, math.pi), fr.line(40.0)])
-    trace = result.trace
-    assert trace.verdict == "stopped"
-    assert "jackknife" in trace.reason or "off the route" in trace.reason
-    assert np.all(np.isfinite(result.rows))
-    assert trace.t[-1] < 60.0
+def test_a_turn_too_tight_folds_the_train_only_without_the_guard():
+    """A 3 m circle for the working point (tighter than any steady turn). Without the forward guard
+    the loop asks for the feedforward's steering and the train jackknifes: the run stops and says
+    why, its trace ending where it stopped. With it the train keeps its hitches clear and the
+    working point, off the circle by metres, comes back to the line after it (the gain shown at
+    most max_error: within 100 m)."""
+    pieces = [fr.line(40.0), fr.arc(3.0, math.pi), fr.line(150.0)]
+    folded = run(pieces, settings=design.Settings(hitch_margin=-math.inf)).trace
+    assert folded.verdict == "stopped" and folded.reason.startswith("jackknife at t = ")
+    assert np.all(np.isfinite(folded.margin)) and folded.t[-1] < 60.0
+    guarded = run(pieces)
+    trace = guarded.trace
+    assert trace.verdict == "ok", trace.reason
+    assert np.min(trace.margin) > math.radians(5.0)
+    assert np.max(np.abs(trace.tracking_error)) > 1.0
+    assert np.all(np.abs(trace.tracking_error[guarded.rows[:, loop.T_STATION] > 40.0 + 3 * math.pi + 100.0]) < 0.01)
 
 
 def test_leaving_the_route_stops_the_run():

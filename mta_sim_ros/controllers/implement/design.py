@@ -35,10 +35,12 @@ rate limit sooner, and the working point then leaves the turn's line for a while
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ...field.turning import implement_of, margin_at
 from ...symbolic.linear import heading_row, linearize, point_row
 from ...validate import fail, show
 
@@ -56,7 +58,10 @@ class Settings:
     q_hitch: float = 0.1  # 1/rad^2: each hitch angle
     r: float = 1.0  # 1/rad^2: the steering command
     max_error: float = 1.0  # m of W's lateral error the gain sees at most
-    off_route: float = 10.0  # m: W farther than this from the route stops the run
+    hitch_margin: float = math.radians(10.0)  # rad: forward, the steering held at most to the steady circle this
+    #                               far from every jackknife limit
+    off_route: float = 30.0  # m: W farther than this from the route stops the run (a turn the train
+    #                          cannot follow takes W some metres off; past this the run is lost)
     decel: float = 0.5  # m/s^2: the speed a cusp is approached with, creep + sqrt(2 decel distance)
     creep: float = 0.3  # m/s
     tick: float = 0.1  # s: the controller's period (the command is held over it)
@@ -70,15 +75,6 @@ class Settings:
     def lead_time(self, train) -> float:
         """s: ``lead``, or the actuator's time constant plus half a tick."""
         return train.actuator.time_constant + 0.5 * self.tick if self.lead is None else float(self.lead)
-
-
-def implement_of(train) -> tuple[int, float, float]:
-    """(cart index m, offset d, width) of the train's implement; InputError when it has none."""
-    imp = train.implement
-    if imp is None:
-        fail("implement", "(missing)", "given: the cart, width and offset of the working point a field run keeps on "
-             "the route", "train", train.source or train.name)
-    return train.cart_index(imp.cart), float(imp.offset), float(imp.width)
 
 
 def working_point_reach(train) -> float:
@@ -126,6 +122,7 @@ class Controller:
     gains: tuple  # Gains per speed, in that order
     row: np.ndarray  # C: W's lateral offset, (n + 2,)
     lead: float  # s
+    forward_angle: float  # rad: the largest steering forward (``hitch_margin``)
     early: float  # m: a lower speed ahead is set this far before it (A_1 to W along the train)
     cart: int
     offset: float
@@ -145,4 +142,18 @@ def controller(train, settings: Settings = Settings()) -> Controller:
         fail("speeds", show(speeds), "working > 0, turn > 0 and reversing != 0 m/s")
     gains = tuple(design(train, v, settings) for v in speeds)
     return Controller(settings, speeds, gains, point_row(train, m, d), settings.lead_time(train),
-                      working_point_reach(train), m, d, width)
+                      guarded_steering(train, settings.hitch_margin), working_point_reach(train), m, d, width)
+
+
+def guarded_steering(train, margin: float) -> float:
+    """The largest steering (<= max_angle) whose steady circle keeps every hitch ``margin`` from
+    its jackknife limits (turning.margin_at; bisection: the margin falls as the steering grows).
+    Forward, a train held at it settles on that circle: no command beyond it can fold the train."""
+    top = train.actuator.max_angle
+    if margin_at(train, top) >= margin:
+        return top
+    low, high = 0.0, top
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if margin_at(train, mid) >= margin else (low, mid)
+    return low

@@ -124,6 +124,7 @@ def run_field(plan: Plan, train, settings: Settings = Settings(), compiled: bool
     params[loop.P_LEAD] = ctl.lead
     params[loop.P_MAX_ERROR], params[loop.P_OFF_ROUTE] = settings.max_error, settings.off_route
     params[loop.P_DECEL], params[loop.P_CREEP] = settings.decel, settings.creep
+    params[loop.P_FORWARD_ANGLE] = ctl.forward_angle
     work, lift = Model(train), Model(lifted(train))
     first = work if R[0, loop.R_WORKING] else lift
     y = np.ascontiguousarray(start_state(start_scene(first.train, plan.route, float(R[0, loop.R_SPEED]), settings),

@@ -30,8 +30,8 @@ R_X, R_Y, R_S, R_HEADING, R_WORKING, R_REVERSE, R_SEGMENT, R_START, R_END, R_SPE
 ROUTE_COLUMNS = 11
 
 #: the controller's numbers (``params``)
-P_CART, P_OFFSET, P_LEAD, P_MAX_ERROR, P_OFF_ROUTE, P_DECEL, P_CREEP = range(7)
-PARAMS = 7
+P_CART, P_OFFSET, P_LEAD, P_MAX_ERROR, P_OFF_ROUTE, P_DECEL, P_CREEP, P_FORWARD_ANGLE = range(8)
+PARAMS = 8
 
 #: a trace row: the scalars, then TRACE_CART per cart
 (T_TIME, T_WX, T_WY, T_LOWERED, T_SEGMENT, T_ERROR, T_STATION, T_MARGIN, T_SPEED, T_POWER, T_STEERING,
@@ -262,7 +262,7 @@ def command_of(P, y, route, ref, j, u, error, cursor, gains, row, params, x_ref)
         consistent -= row[k] * dev
         u_cmd -= gains[g, k] * dev
     u_cmd -= gains[g, 0] * consistent
-    max_angle = P[H.max_angle]
+    max_angle = P[H.max_angle] if reverse else min(P[H.max_angle], params[P_FORWARD_ANGLE])
     u_cmd = min(max(u_cmd, -max_angle), max_angle)
     v_set = route[j, R_SPEED]
     last = int(route[j, R_END])
