@@ -30,8 +30,10 @@ its perimeter).
     worked outside  worked ground beyond the boundary or in an obstacle
 
 Footprints: each cart's box (physics/outline.box_of, the one RViz draws) at every row, against the
-field: rows where a box is not inside the boundary, or reaches into an obstacle, are grouped into
-excursions (cart, kind, from, to, where: the middle of the part outside at its largest).
+field grown by ON_BOUNDARY (a box's edge on the boundary, as a seeder's on the outer headland
+pass, is inside): rows where a box is not inside the boundary, or reaches into an obstacle, are
+grouped into excursions (cart, kind, from, to, where: the middle of the part outside at its
+largest).
 """
 from __future__ import annotations
 
@@ -188,41 +190,50 @@ def skip_causes(skipped, trace: FieldTrace, width: float) -> dict:
 # -- the footprints ---------------------------------------------------------------------------------
 
 
-def boxes(trace: FieldTrace, train, k: int) -> np.ndarray:
-    """Cart k's box at every row as shapely Polygons."""
+def boxes(trace: FieldTrace, train, k: int, rows: np.ndarray) -> np.ndarray:
+    """Cart k's box at ``rows`` as shapely Polygons."""
     centre, length, width, _ = box_of(train, k)
-    th = trace.heading[:, k]
+    th = trace.heading[rows, k]
     e = np.column_stack((np.cos(th), np.sin(th)))
     n = np.column_stack((-e[:, 1], e[:, 0]))
-    b = trace.axle[:, k]
+    b = trace.axle[rows, k]
     corners = [b + (centre + sa * length / 2) * e + (sb * width / 2) * n
                for sa, sb in ((1, 1), (-1, 1), (-1, -1), (1, -1))]
     return shapely.polygons(np.stack(corners, axis=1))
 
 
 def excursions(trace: FieldTrace, train) -> list[Excursion]:
-    """Every cart's footprint outside the boundary or in an obstacle, as runs of rows."""
-    land = trace.plan.field.polygon
+    """Every cart's footprint outside the boundary or in an obstacle, as runs of rows. A box whose
+    centre lies farther inside than its half diagonal is inside: only the others are tested."""
+    land = trace.plan.field.polygon.buffer(ON_BOUNDARY)  # a box's edge on the boundary is inside
     shell = sg.Polygon(land.exterior)
     shapely.prepare(land)
     shapely.prepare(shell)
     found = []
     for k, cart in enumerate(train.carts):
-        box = boxes(trace, train, k)
-        out_rows = np.flatnonzero(~shapely.covered_by(box, land))
+        centre, length, width, _ = box_of(train, k)
+        core = land.buffer(-0.5 * math.hypot(length, width))
+        shapely.prepare(core)
+        th = trace.heading[:, k]
+        middle = trace.axle[:, k] + centre * np.column_stack((np.cos(th), np.sin(th)))
+        near = np.flatnonzero(~shapely.contains_xy(core, middle[:, 0], middle[:, 1]))
+        box = boxes(trace, train, k, near)
+        inside = shapely.covered_by(box, land)
+        out_rows, box = near[~inside], box[~inside]
         if not out_rows.size:
             continue
-        beyond = ~shapely.covered_by(box[out_rows], shell)
-        for kind, rows in (("outside the boundary", out_rows[beyond]), ("in an obstacle", out_rows[~beyond])):
-            outside = shapely.difference(box[rows], shell if kind.startswith("outside") else land)
+        beyond = ~shapely.covered_by(box, shell)
+        for kind, pick in (("outside the boundary", beyond), ("in an obstacle", ~beyond)):
+            rows = out_rows[pick]
+            outside = shapely.difference(box[pick], shell if kind.startswith("outside") else land)
             areas = shapely.area(outside)
             for run in np.split(np.arange(rows.size), np.flatnonzero(np.diff(rows) > 1) + 1):
                 if not run.size:
                     continue
                 worst = run[int(np.argmax(areas[run]))]
-                middle = outside[worst].centroid if areas[worst] > 0.0 else box[rows[worst]].centroid
+                spot = outside[worst].centroid if areas[worst] > 0.0 else box[pick][worst].centroid
                 found.append(Excursion(cart.name, kind, float(trace.t[rows[run[0]]]), float(trace.t[rows[run[-1]]]),
-                                       (middle.x, middle.y), float(areas[worst])))
+                                       (spot.x, spot.y), float(areas[worst])))
     return sorted(found, key=lambda e: e.first)
 
 
