@@ -12,7 +12,6 @@ import pytest
 
 from mta_sim_ros.bag import BagWriter
 from mta_sim_ros.bag.writer import header, yaw_quaternion
-from mta_sim_ros.cli import main
 from mta_sim_ros.field.boundary import load_field
 from mta_sim_ros.field.plan import plan_field
 from mta_sim_ros.field.plan_io import PLAN_TYPE, geojson_document, route_csv, write_bag
@@ -20,27 +19,18 @@ from mta_sim_ros.field.route_io import read_route
 from mta_sim_ros.field.types import PlanOptions
 from mta_sim_ros.physics.loader import load_train
 
+from fieldcli import field_command, field_refused
+
 DEFAULT = load_train("config/trains/default.yaml")
 ROUTE_ARRAYS = ("xy", "s", "heading", "curvature", "working", "reverse", "segment")
 
 
 def run(capsys, *args) -> tuple[int, str, str]:
-    try:
-        code = main(["field", "plan", *map(str, args)])
-    except SystemExit as stop:  # argparse refusing an argument
-        code = stop.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return field_command(capsys, "plan", *args)
 
 
 def refused(capsys, expected: tuple, *args) -> str:
-    code, _, err = run(capsys, *args)
-    lines = err.strip().splitlines()
-    assert code == 2 and len(lines) == 1, err
-    assert "Traceback" not in err
-    for text in expected:
-        assert text in lines[0], (text, lines[0])
-    return lines[0]
+    return field_refused(capsys, expected, "plan", *args)
 
 
 @pytest.mark.parametrize("name", ["rectangle.yaml", "irregular.yaml", "kuban.geojson"])

@@ -2,6 +2,8 @@
 
     mta field plan FIELD [--train T] [--angle DEG] [--overlap F] [--headlands N]
                    [--route auto|boustrophedon|skip] [--turn auto|u|bulb|fishtail] [--out DIR]
+    mta field run FIELD [--train T] [--plan P] [--out DIR]      (field_run.py: work it, measure it)
+    mta field report DIR [--out DIR2]                           (field_report.py: its pictures)
 
 ``plan`` makes the coverage plan of a field (GeoJSON or YAML, config/fields/) for a train's
 implement (its working width, the working point the route is for) and writes it into DIR (default
@@ -47,6 +49,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     q.add_argument("--turn", choices=TURNS, default="auto", help="headland turn kind (default auto)")
     q.add_argument("--out", help="folder to write into (default plans/<field name>)")
     q.set_defaults(func=main)
+    from . import field_report, field_run
+
+    field_run.add_parser(sub)
+    field_report.add_parser(sub)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -98,11 +104,20 @@ def write_plan(plan, paths: dict[str, Path]) -> None:
     """All three files through partial ones, renamed onto their places once all are written."""
     from ..field.plan_io import geojson_text, route_csv, write_bag
 
-    temporary = {name: partial(path) for name, path in paths.items()}
-    try:
+    def write(temporary: dict[str, Path]) -> None:
         temporary["plan.geojson"].write_text(geojson_text(plan))
         temporary["plan.csv"].write_text(route_csv(plan))
         write_bag(plan, temporary["plan.mcap"])
+
+    write_all(paths, write)
+
+
+def write_all(paths: dict[str, Path], write) -> None:
+    """``write(partial paths)`` writes every file of ``paths`` (name -> path) to its partial file;
+    then each is renamed onto its place. A failure leaves no partial file and no output changed."""
+    temporary = {name: partial(path) for name, path in paths.items()}
+    try:
+        write(temporary)
         for name, path in paths.items():
             os.replace(temporary[name], path)
     finally:
