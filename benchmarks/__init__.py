@@ -18,6 +18,7 @@ flood           the node under a flood of steering commands: deadline misses, ti
                 memory (flood.py, flooder.py)
 sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
 reverse         the reversing controller: speeds, train lengths and offsets where it holds and where it folds
+field           mta field run on a whole field: wall time on one core and where it goes
 
 Shared: common.py (report header and writing, scene paths, child processes' environment, timing
 side by side), runs.py (node-mode runs of a scene with held inputs, hitch points, errors against a
@@ -29,4 +30,4 @@ from __future__ import annotations
 #: the benchmarks' modules; each has HELP, add_arguments(parser) and main(args); the command is
 #: the module's name with '-' for '_'
 MODULES = ("realtime", "method", "work_precision", "stability", "scaling", "fidelity", "tick_parts", "kinks",
-           "sigkill", "flood", "sweep", "reverse")
+           "sigkill", "flood", "sweep", "reverse", "field")

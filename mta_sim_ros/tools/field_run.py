@@ -60,14 +60,12 @@ def main(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         field, train, paths, plan_path = inputs(args)
-    except InputError as err:
-        print(f"mta field run: {err}", file=sys.stderr)
-        return EXIT_INPUT
-    try:
+        loaded = time.perf_counter() - t0
         work = work_field(field, train, plan_path, settings_of(args))
     except InputError as err:
         print(f"mta field run: {err}", file=sys.stderr)
         return EXIT_INPUT
+    work.timings = {"inputs": loaded, **work.timings}
     t = time.perf_counter()
     write_run(paths, work)
     work.timings["write"] = time.perf_counter() - t
@@ -163,7 +161,7 @@ class Work:
     train: object
     run: object  # drive.FieldRun
     result: object  # coverage.FieldMetrics
-    timings: dict  # s: plan, design, compile, loop, metrics (then write, total)
+    timings: dict  # s: inputs, plan, design, compile, loop, metrics (metrics.json's), then write, total
 
 
 def work_field(field, train, plan_path, settings) -> Work:
