@@ -83,6 +83,9 @@ def swath_plan(field, width: float, headland: float, swaths: int | None = None, 
     count = swaths or int(round((inner.bounds[3] - inner.bounds[1]) / width))
     length = inner.bounds[2] - inner.bounds[0]
     r = turn_radius or width / 2.0
+    if r > width / 2.0:
+        raise ValueError(f"turn_radius {r} m: a U-turn of two quarter circles joins swaths {width} m apart only "
+                         f"for a radius up to {width / 2} m")
     pieces = [line(lead, "transit", False)] if lead > 0 else []
     lines = []
     for i in range(count):
