@@ -41,7 +41,7 @@ from .boundary import FieldError
 STEERING_SHARE = 0.8
 #: rad: what every hitch keeps to each of its jackknife limits in a planned turn (20 deg)
 HITCH_MARGIN = math.radians(20.0)
-#: s: the simulated turn's tick; its integrator the scene default (rk4, 0.01 s)
+#: Hz: the simulated turn's ticks (its integrator the scene default, rk4 at 0.01 s)
 REACH_RATE = 50.0
 #: half turns a simulated turn may take at most before it is called a failure (a spiral that never
 #: closes: the train's turn is far from steady)

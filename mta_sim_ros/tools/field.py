@@ -22,6 +22,8 @@ import os
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from ..validate import EXIT_INPUT, InputError, Range, fail, number_arg, output_folder, show
 
 OVERLAP = Range("in [0, 0.5)", lambda x: 0.0 <= x < 0.5)
@@ -131,13 +133,14 @@ def summary(plan, train) -> str:
 
     kinds = turn_kinds(plan)
     field = plan.field
+    working = float(np.diff(plan.route.s)[plan.route.working[:-1]].sum())
     lines = [f"field {field.name} ({field.source}), {field.area / 1e4:.2f} ha; train {train.name}, implement "
              f"{plan.options.width:g} m",
              f"swaths {len(plan.swaths)} at {math.degrees(plan.angle):.1f} deg, spacing "
              f"{plan.options.width * (1 - plan.options.overlap):.2f} m",
              "turns " + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"),
              f"headland {plan.headland_width:.1f} m, turn radius {plan.turn_radius:.2f} m",
-             f"route {plan.route.s[-1] / 1e3:.2f} km ({plan.route.s[plan.route.working].size} vertices working of "
-             f"{plan.route.s.size}), target {plan.target.area / 1e4:.2f} ha"]
+             f"route {plan.route.s[-1] / 1e3:.2f} km ({working / 1e3:.2f} km working, {plan.route.s.size} vertices), "
+             f"target {plan.target.area / 1e4:.2f} ha"]
     lines += [f"  - {note}" for note in plan.notes]
     return "\n".join(lines)
