@@ -25,13 +25,18 @@ The working point W is the point ``offset`` m ahead of the implement cart m's ax
   tick: tau + tick / 2 by default).
 - The error the gain sees is clipped to ``max_error`` (a large offset would ask for more than the
   actuator's angle, and a saturated loop is not the one designed).
+- Forward, the command is clipped to the steering whose steady circle keeps every hitch
+  ``hitch_margin`` from its jackknife limits (``guarded_steering``): held there, a forward train
+  settles on that circle, so no command folds it. Where the route asks for more (a turn tighter
+  than the train follows, a change of side at its tightest radius) the working point leaves the
+  line for a while and comes back. Reversing, the actuator's max_angle (the gain holds the hitches).
 
 Speeds (the traction law holds them; Settings): the working speed on working stretches (default
 the traction law's set speed), ``turn_speed`` in turns and transits, ``reverse_speed`` backwards;
-a lower speed ahead is set as far early as the train is long (A_1 to W), and the speed falls to a cusp as
-creep + sqrt(2 decel distance) so the train can stop there and change direction. The
+a lower speed ahead is set as far early as the train is long (A_1 to W), and the speed falls to a
+cusp as creep + sqrt(2 decel distance) so the train can stop there and change direction. The
 feedforward asks psi' = V d psi_ref / ds of the actuator: a tighter turn or a faster one meets its
-rate limit sooner, and the working point then leaves the turn's line for a while.
+rate limit sooner.
 """
 from __future__ import annotations
 
