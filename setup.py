@@ -78,6 +78,9 @@ setup(
         # The figures are what `mta analyze` (and so `mta session`, `make run`) is for, and
         # package.xml makes python3-matplotlib a hard dependency of a ROS install too.
         'matplotlib>=3.6.3',
+        # mta field: the field's geometry (shapely: GEOS) and its projection (pyproj: PROJ)
+        'shapely>=2.0.3',
+        'pyproj>=3.6.1',
         # `mta linearize`: exact derivatives of the chain's equations on symbols (linear.py); pure Python
         'sympy>=1.12',
     ],

@@ -14,6 +14,7 @@ throughput/   how much is done in a second
                   writes its report)
   tick-parts      the tick's parts in two forms, side by side
   sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
+  field           mta field run on a whole field: wall time on one core and where it goes
 node/         the running node over DDS
   realtime        the node at real-time factor 1, steered by a player process (player.py; ``--stages``: the
                   node's tick profile, stages.py)
@@ -36,6 +37,7 @@ MODULES = {
     "method": "accuracy.method", "work_precision": "accuracy.work_precision", "stability": "accuracy.stability",
     "kinks": "accuracy.kinks", "fidelity": "accuracy.fidelity",
     "scaling": "throughput.scaling", "tick_parts": "throughput.tick_parts", "sweep": "throughput.sweep",
+    "field": "throughput.field",
     "realtime": "node.realtime", "sigkill": "node.sigkill", "flood": "node.flood",
     "reversing": "controllers.reversing",
 }

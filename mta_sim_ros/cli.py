@@ -146,6 +146,8 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "sweep", "synthesis: many hitching schemes run and compared (Dask), report and export", selected)
 
+    add_tool(sub, "field", "field operations: plan a field for a train, work it offline, report it", selected)
+
     return parser
 
 

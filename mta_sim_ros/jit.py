@@ -1,7 +1,8 @@
 """numba where it can run, the same functions as plain Python where it cannot. No physics here.
 
-The kernels (``physics/kernel/``, ``integrate/rk.py``, ``run/whole.py``, ``run/offsets.py``) are
-written once, in the subset of Python that numba compiles. Two decorators give them their two lives:
+The kernels (``physics/kernel/``, ``integrate/rk.py``, ``run/whole.py``, ``run/offsets.py``,
+``controllers/implement/loop.py``) are written once, in the subset of Python that numba compiles.
+Two decorators give them their two lives:
 
 ``jitable``  a function the kernels call from each other: plain Python when called from Python,
              compiled into its caller when called from compiled code (numba's register_jitable).
@@ -41,6 +42,7 @@ UNIT = (
     "integrate/rk.py",
     "run/whole.py",
     "run/offsets.py",
+    "controllers/implement/loop.py",
 )
 
 

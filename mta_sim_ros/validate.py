@@ -498,6 +498,20 @@ def output_folder(path: str | os.PathLike, field: str) -> Path:
 # --------------------------------------------------------------------------- command-line numbers
 
 
+def write_together(paths: dict[str, Path], write: Callable[[dict[str, Path]], None]) -> None:
+    """Write several output files as one: ``write(partial paths)`` writes each file of ``paths``
+    (name -> path) to a partial file beside it (``.NAME.partial``), then each is renamed onto its
+    place. A failure leaves no partial file and no output changed."""
+    temporary = {name: path.with_name(f".{path.name}.partial") for name, path in paths.items()}
+    try:
+        write(temporary)
+        for name, path in paths.items():
+            os.replace(temporary[name], path)
+    finally:
+        for tmp in temporary.values():
+            tmp.unlink(missing_ok=True)
+
+
 def number_arg(rule: Rule = ANY, kind: type = float) -> Callable[[str], float]:
     """An argparse ``type``: the text as a ``kind`` (float or int) that is finite and obeys
     ``rule``; else the one-line reason (argparse adds the option's name)."""

@@ -49,6 +49,7 @@ from mta_sim_ros.bag import (
     summary,
 )
 from mta_sim_ros.bag.schemas import SEPARATOR, share_dirs, vendored_dir
+from mta_sim_ros.field.plan_io import PLAN_TYPE
 from mta_sim_ros.messages.topics import BAG_TOPICS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -194,10 +195,11 @@ def test_definitions_match_rosbags_typestore(type_name):
 
 def test_vendored_definitions_are_the_installed_files_of_every_type_the_package_writes():
     """bag/msg holds, byte for byte, the installed .msg file of each type the package writes into a
-    bag and of each type those nest (the MSG: blocks of their definitions), and nothing else: a
-    venv without ROS (test_no_ros.py) writes the schemas a ROS install writes."""
+    bag (the node's, a field plan's) and of each type those nest (the MSG: blocks of their
+    definitions), and nothing else: a venv without ROS (test_no_ros.py) writes the schemas a ROS
+    install writes."""
     needed = set()
-    for type_name in set(BAG_TOPICS.values()):
+    for type_name in set(BAG_TOPICS.values()) | {PLAN_TYPE}:  # the node's bags and a field plan's
         needed.add(type_name.replace("/msg/", "/"))
         needed.update(line[5:] for line in message_definition(type_name).splitlines() if line.startswith("MSG: "))
     root = Path(str(vendored_dir()))

@@ -165,3 +165,43 @@ def test_bad_arguments_are_refused_in_one_line(args, field, capsys):
     assert code == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and field in err, err
+
+
+@pytest.mark.parametrize("about, speed, steering", [("straight", 3.0, 0.0), ("straight", -1.0, 0.0),
+                                                    ("turn", 2.0, 0.3), ("turn", -1.0, -0.2)])
+def test_forward_mode_gives_the_symbolic_jacobians(about, speed, steering):
+    """exact='dual' (forward-mode through chain.chain, no sympy) against sympy's Jacobian of the
+    same equations, on random trains of 1 to 5 carts: the same A and B to round-off."""
+    rng = np.random.default_rng(20)
+    for n in range(1, 6):
+        train = random_train(rng, n)
+        try:
+            symbolic = linear.linearize(train, about, speed, steering)
+        except Exception as err:  # no steady turn for this train at this steering
+            assert about == "turn", err
+            continue
+        dual = linear.linearize(train, about, speed, steering, exact="dual")
+        scale = max(1.0, float(np.abs(symbolic.A).max()))
+        np.testing.assert_allclose(dual.A, symbolic.A, rtol=0, atol=1e-13 * scale)
+        np.testing.assert_allclose(dual.B, symbolic.B, rtol=0, atol=1e-13 * scale)
+        assert dual.states == symbolic.states and dual.modes == symbolic.modes
+
+
+def test_a_wrong_derivative_in_the_dual_numbers_would_show():
+    """The comparison above can fail: the dual numbers' sin with a wrong derivative sign changes A."""
+    train = DEFAULT
+    good = linear.linearize(train, "straight", 3.0, exact="dual")
+    point, geom = [0.0] * (train.n + 2), linear.ChainGeometry.of(train)
+    seeds = np.eye(train.n + 3)
+
+    class Wrong(linear.Dual):
+        @staticmethod
+        def sin(a):
+            a = linear.Dual.of(a)
+            return linear.Dual(math.sin(a.v), -math.cos(a.v) * a.d)
+
+    x = [linear.Dual(v, seeds[i]) for i, v in enumerate(point)]
+    f = linear.equations(x, linear.Dual(0.0, seeds[-1]), 3.0, train.actuator.time_constant, 1.0, geom, "straight",
+                         Wrong)
+    A = np.array([linear.Dual.of(fi).d * np.ones(train.n + 3) for fi in f])[:, :-1]
+    assert np.abs(A - good.A).max() > 0.1

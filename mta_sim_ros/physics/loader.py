@@ -29,7 +29,7 @@ from .. import validate
 from ..validate import Rule
 from . import maneuvers, spec
 from .reader import Section, SpecError, fail, parse, read, show
-from .schema import (ACTUATOR, CART, DRAFT, FIDELITY_CHOICES, FORCES, INITIAL, INTEGRATOR,
+from .schema import (ACTUATOR, CART, DRAFT, FIDELITY_CHOICES, FORCES, FUEL, IMPLEMENT, INITIAL, INTEGRATOR,
                      MANEUVER_PARAMS, NAME_CHARS, NEEDS, ROLLING, SCENE, SPEED_COMMAND_TABLE, SPEED_TABLE, STEERING,
                      STEERING_TABLE, TRACTION, TRACTION_LAWS, TRAIN)
 
@@ -100,6 +100,20 @@ def _actuator(top: Section) -> spec.Actuator:
     return spec.Actuator(**ACTUATOR.read(s))
 
 
+def _implement(top: Section, names: tuple[str, ...]) -> Optional[spec.Implement]:
+    """The working tool (spec.Implement), on a cart of this train; None when not given."""
+    if not top.has("implement"):
+        return None
+    s = top.section("implement", IMPLEMENT.keys)
+    return spec.Implement(cart=_cart_name(s, names), **IMPLEMENT.read(s, "width", "offset"))
+
+
+def _fuel(top: Section) -> Optional[spec.Fuel]:
+    if not top.has("fuel"):
+        return None
+    return spec.Fuel(**FUEL.read(top.section("fuel", FUEL.keys)))
+
+
 def _train(data: dict, source: str) -> spec.Train:
     top = Section(data, "", source, TRAIN.keys)
     carts = _carts(top)
@@ -113,6 +127,8 @@ def _train(data: dict, source: str) -> spec.Train:
         draft=tuple(_draft(s, names) for s in forces.sections("draft", DRAFT.keys)),
         actuator=_actuator(top),
         **TRAIN.read(top, "gravity", "smoothing_speed"),
+        implement=_implement(top, names),
+        fuel=_fuel(top),
         source=source,
     )
 

@@ -228,6 +228,21 @@ ACTUATOR = Schema("Steering actuator", "steering_actuator", "The tractor's steer
     Field("max_rate", NUMBER, "the largest |psi_1'|", "rad/s", STEER_RATE, angle=True),
     Field("max_angle", NUMBER, "the largest |psi_1|", "rad", MAX_STEER, angle=True),
 ))
+IMPLEMENT = Schema("Implement", "implement", "The working tool a field plan is made for (mta field): the point "
+                   "of one cart that must stay on its swath, and the width of ground it works there.", (
+    Field("cart", TEXT, "the cart carrying it", rule_text="the name of a cart of this train"),
+    Field("width", NUMBER, "its working width: the swaths' spacing, before overlap", "m", Rule(
+        "> 0 and <= 100 m", lambda x: 0 < x <= 100.0)),
+    Field("offset", NUMBER, "the working point, from the cart's axle B_k forward along its axis", "m", OFFSET,
+          spec.Implement.offset),
+))
+FUEL = Schema("Fuel", "fuel", "Fuel burnt for traction: specific_consumption x traction power / efficiency, "
+              "integrated where the power is positive.", (
+    Field("specific_consumption", NUMBER, "the engine's brake specific fuel consumption", "g/kWh", Rule(
+        "> 0 and <= 2000 g/kWh", lambda x: 0 < x <= 2000.0)),
+    Field("efficiency", NUMBER, "the drive train's, engine to wheels: traction power / engine power", "", Rule(
+        "in (0, 1]", lambda x: 0 < x <= 1.0), spec.Fuel.efficiency),
+))
 TRAIN = Schema("Train file", "top level", "The mechanical scheme (a list of carts) and its force elements: what the "
                "KiDiM method takes as input (config/trains/*.yaml).", (
     Field("name", TEXT, "the train's name", default_text="the file's stem", also=f"at most {NAME_CHARS} printable "
@@ -240,6 +255,10 @@ TRAIN = Schema("Train file", "top level", "The mechanical scheme (a list of cart
     Field("smoothing_speed", NUMBER, "resistances are smoothed through V = 0 with tanh(v / smoothing_speed)", "m/s",
           SMOOTHING, spec.Train.smoothing_speed),
     Field("gravity", NUMBER, "g", "m/s^2", GRAVITY, spec.GRAVITY),
+    Field("implement", MAPPING, "the working tool of field operations", default=None, schema=IMPLEMENT,
+          default_text="none: the train plans and works no field"),
+    Field("fuel", MAPPING, "fuel per traction energy", default=None, schema=FUEL,
+          default_text="none: no fuel is reported"),
 ))
 
 # --------------------------------------------------------------------------- scenes
@@ -327,6 +346,6 @@ SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, 
 ))
 
 #: every mapping of a train file and of a scene file, in the order of the reference
-TRAIN_SCHEMAS = (TRAIN, CART, FORCES, *TRACTION.values(), ROLLING, DRAFT, ACTUATOR)
+TRAIN_SCHEMAS = (TRAIN, CART, FORCES, *TRACTION.values(), ROLLING, DRAFT, ACTUATOR, IMPLEMENT, FUEL)
 SCENE_SCHEMAS = (SCENE, INITIAL, STEERING, STEERING_TABLE, MANEUVER_PARAMS, SPEED_COMMAND_TABLE, SPEED_TABLE,
                  INTEGRATOR, NEEDS)

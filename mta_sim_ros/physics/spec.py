@@ -104,6 +104,25 @@ class Actuator:
 
 
 @dataclass(frozen=True)
+class Implement:
+    """The working tool a field plan is made for: a point of one cart that must stay on its swath,
+    and the width of ground it works there (the field room's plans and coverage)."""
+
+    cart: str  # the cart carrying it
+    width: float  # m, working width
+    offset: float = 0.0  # m, the working point from the cart's axle B_k forward along its axis
+
+
+@dataclass(frozen=True)
+class Fuel:
+    """Fuel burnt for traction: specific_consumption (g/kWh, of the engine) x traction power /
+    efficiency (the drive train's, engine to wheels), integrated over positive power."""
+
+    specific_consumption: float  # g/kWh
+    efficiency: float = 1.0  # traction power / engine power
+
+
+@dataclass(frozen=True)
 class Train:
     name: str
     carts: tuple[Cart, ...]
@@ -114,6 +133,8 @@ class Train:
     gravity: float = GRAVITY
     # Resistances are smoothed through V = 0 with tanh(v / smoothing_speed), m/s.
     smoothing_speed: float = 0.05
+    implement: Optional[Implement] = None  # the working tool of field operations (None: no field work)
+    fuel: Optional[Fuel] = None  # fuel per traction energy (None: fuel not reported)
     source: str = ""  # the file it came from, for messages
 
     @property

@@ -34,9 +34,9 @@ def path_offsets(px, py, qx, qy, growing):
             continue
         if j > last - 1:
             j = last - 1
-        best, side, u = _segment_distance2(px, py, j, last, qx[i], qy[i])
+        best, side, u = segment_distance2(px, py, j, 0, last, qx[i], qy[i])
         while j + 1 <= last - 1:
-            d, s, v = _segment_distance2(px, py, j + 1, last, qx[i], qy[i])
+            d, s, v = segment_distance2(px, py, j + 1, 0, last, qx[i], qy[i])
             if d > best:
                 break
             best, side, u, j = d, s, v, j + 1
@@ -47,17 +47,17 @@ def path_offsets(px, py, qx, qy, growing):
 
 
 @jitable
-def _segment_distance2(px, py, j, last, x, y):
-    """(squared distance from (x, y) to segment j of the polyline whose last vertex is ``last``, the side:
-    the cross product's sign, the position u along the segment); the first and the last segment
-    extend to lines beyond their ends (u < 0, u > 1)."""
+def segment_distance2(px, py, j, first, last, x, y):
+    """(squared distance from (x, y) to segment j of the polyline whose vertices are first..last,
+    the side: the cross product's sign, the position u along the segment); the first and the last
+    segment extend to lines beyond their ends (u < 0, u > 1)."""
     ax, ay = px[j], py[j]
     dx, dy = px[j + 1] - ax, py[j + 1] - ay
     length2 = dx * dx + dy * dy
     u = ((x - ax) * dx + (y - ay) * dy) / length2 if length2 > 0.0 else 0.0
     if u > 1.0 and j + 1 < last:
         u = 1.0
-    if u < 0.0 and j > 0:
+    if u < 0.0 and j > first:
         u = 0.0
     ox, oy = x - (ax + u * dx), y - (ay + u * dy)
     cross = dx * oy - dy * ox

@@ -76,52 +76,149 @@ def symbolic(n: int, about: str):
     first, second = sp.symbols("rho eta") if about == "turn" else sp.symbols("y th")
     phi = sp.symbols(f"phi2:{n + 1}")
     psi = sp.Symbol("psi")
-    heading = [sp.Integer(0) if about == "turn" else second]
+    x = [first, second, *phi, psi]
+    f = equations(x, u, V, tau, R, ChainGeometry(tuple(l), tuple(lam), tuple(mu)), about, sp)
+    return x, u, (V, tau, R, l, lam, mu), f
+
+
+def equations(x, u, V, tau, R, geom: ChainGeometry, about: str, fn) -> list:
+    """f(x, u) of the module docstring, from ``chain.chain`` with ``fn``'s sin, cos, sqrt and atan2:
+    sympy's on symbols (``symbolic``), or ``Dual``'s on numbers with their derivatives."""
+    first, second, *phi, psi = x
+    heading = [second * 0 if about == "turn" else second]  # turn: th_1 = 0 (sympy's 0, or a Dual 0)
     for p in phi:
         heading.append(heading[-1] - p)
-    ch = chain(ChainGeometry(tuple(l), tuple(lam), tuple(mu)), heading, psi, V, 0, fn=sp)
+    ch = chain(geom, heading, psi, V, 0, fn=fn)
     rates = [kt * V for kt in ch.kapT]
     if about == "turn":
-        f = [V * sp.cos(second + psi), rates[0] - V * sp.sin(second + psi) / (R + first)]
+        f = [V * fn.cos(second + psi), rates[0] - V * fn.sin(second + psi) / (R + first)]
     else:
-        f = [V * sp.sin(second + psi), rates[0]]
-    f += [rates[k - 1] - rates[k] for k in range(1, n)]
+        f = [V * fn.sin(second + psi), rates[0]]
+    f += [rates[k - 1] - rates[k] for k in range(1, len(geom.length))]
     f.append((u - psi) / tau)
-    return [first, second, *phi, psi], u, (V, tau, R, l, lam, mu), f
+    return f
 
 
-def linearize(train, about: str = "straight", speed: float = 3.0, steering: float = 0.0) -> LinearModel:
+class Dual:
+    """A number and its gradient, v + d . eps (forward-mode differentiation): what ``chain``
+    computes on these is its value and its exact derivatives, to round-off, without sympy."""
+
+    __slots__ = ("v", "d")
+
+    def __init__(self, v: float, d: np.ndarray):
+        self.v, self.d = float(v), d
+
+    @staticmethod
+    def of(a) -> "Dual":
+        return a if isinstance(a, Dual) else Dual(a, 0.0)
+
+    def __add__(self, o):
+        o = Dual.of(o)
+        return Dual(self.v + o.v, self.d + o.d)
+
+    __radd__ = __add__
+
+    def __sub__(self, o):
+        o = Dual.of(o)
+        return Dual(self.v - o.v, self.d - o.d)
+
+    def __rsub__(self, o):
+        return Dual.of(o) - self
+
+    def __neg__(self):
+        return Dual(-self.v, -self.d)
+
+    def __mul__(self, o):
+        o = Dual.of(o)
+        return Dual(self.v * o.v, self.d * o.v + self.v * o.d)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o):
+        o = Dual.of(o)
+        return Dual(self.v / o.v, (self.d * o.v - self.v * o.d) / (o.v * o.v))
+
+    def __rtruediv__(self, o):
+        return Dual.of(o) / self
+
+    # the functions ``chain`` takes from its ``fn``
+    @staticmethod
+    def sin(a):
+        a = Dual.of(a)
+        return Dual(math.sin(a.v), math.cos(a.v) * a.d)
+
+    @staticmethod
+    def cos(a):
+        a = Dual.of(a)
+        return Dual(math.cos(a.v), -math.sin(a.v) * a.d)
+
+    @staticmethod
+    def sqrt(a):
+        a = Dual.of(a)
+        root = math.sqrt(a.v)
+        return Dual(root, a.d / (2.0 * root))
+
+    @staticmethod
+    def atan2(a, b):
+        a, b = Dual.of(a), Dual.of(b)
+        return Dual(math.atan2(a.v, b.v), (b.v * a.d - a.v * b.d) / (a.v * a.v + b.v * b.v))
+
+
+def linearize(train, about: str = "straight", speed: float = 3.0, steering: float = 0.0,
+              exact: str = "sympy") -> LinearModel:
     """The linear model of ``train`` about straight motion at ``speed`` (forward or reversing)
-    or about the steady turn of ``steering`` (module docstring)."""
-    import sympy as sp
-
+    or about the steady turn of ``steering`` (module docstring). ``exact``: how A and B are
+    differentiated, both exact: "sympy" (the Jacobian of the symbolic equations, as printed) or
+    "dual" (forward-mode on numbers through the same ``chain``: no sympy, ~1 ms against ~1 s the
+    first time, what a run that designs its gains at start-up takes)."""
     n = train.n
-    x, u, (V, tau, R, l, lam, mu), f = symbolic(n, about)
     geom = ChainGeometry.of(train)
-    values = {V: speed, tau: train.actuator.time_constant}
-    values.update(zip(l, geom.length))
-    values.update(zip(lam, geom.lam))
-    values.update(zip(mu, geom.mu))
+    tau = train.actuator.time_constant
+    R = 1.0  # not in the straight equations
     if about == "turn":
         circle = steady_circle(train, steering)
-        values[R] = circle.R_A[0]
+        R = circle.R_A[0]
         side = math.copysign(math.pi / 2, steering)
         point = [0.0, side - steering, *circle.hitch_angles, steering]
     else:
-        values[R] = 1.0  # not in the straight equations
         point = [0.0] * (n + 2)
+    if exact == "dual":
+        A, B = _jacobians_dual(point, steering, speed, tau, R, geom, about)
+    else:
+        A, B = _jacobians_sympy(n, point, steering, speed, tau, R, geom, about)
+    eig, vectors = np.linalg.eig(A)
+    order = np.lexsort((eig.imag, eig.real))
+    eig, vectors = eig[order], vectors[:, order]
+    names = ["rho", "eta"] if about == "turn" else ["y", "th"]
+    names += [f"phi{k}" for k in range(2, n + 1)] + ["psi"]
+    units = ["m", "rad"] + ["rad"] * (n - 1) + ["rad"]
+    modes = [_meaning(names, A, vectors[:, i], eig[i]) for i in range(len(eig))]
+    return LinearModel(about, speed, steering, names, units, A, B, np.array(point), eig, modes)
+
+
+def _jacobians_sympy(n, point, steering, speed, tau_value, R_value, geom, about):
+    import sympy as sp
+
+    x, u, (V, tau, R, l, lam, mu), f = symbolic(n, about)
+    values = {V: speed, tau: tau_value, R: R_value}
+    values.update(zip(l, geom.length))
+    values.update(zip(lam, geom.lam))
+    values.update(zip(mu, geom.mu))
     at = dict(zip(x, point))
     at[u] = steering
     F = sp.Matrix(f)
     A = np.array(F.jacobian(x).subs(values).subs(at).evalf(), dtype=float)
     B = np.array(F.jacobian([u]).subs(values).subs(at).evalf(), dtype=float)
-    eig, vectors = np.linalg.eig(A)
-    order = np.lexsort((eig.imag, eig.real))
-    eig, vectors = eig[order], vectors[:, order]
-    names = [str(s) for s in x]
-    units = ["m", "rad"] + ["rad"] * (n - 1) + ["rad"]
-    modes = [_meaning(names, A, vectors[:, i], eig[i]) for i in range(len(eig))]
-    return LinearModel(about, speed, steering, names, units, A, B, np.array(point), eig, modes)
+    return A, B
+
+
+def _jacobians_dual(point, steering, speed, tau, R, geom, about):
+    size = len(point)
+    seeds = np.eye(size + 1)  # d/dx_0 .. d/dx_{size-1}, d/du
+    x = [Dual(v, seeds[i]) for i, v in enumerate(point)]
+    f = equations(x, Dual(steering, seeds[size]), speed, tau, R, geom, about, Dual)
+    J = np.array([Dual.of(fi).d * np.ones(size + 1) for fi in f])
+    return J[:, :size], J[:, size:]
 
 
 def _meaning(names: list, A: np.ndarray, vector: np.ndarray, value: complex) -> str:
@@ -141,6 +238,29 @@ def _meaning(names: list, A: np.ndarray, vector: np.ndarray, value: complex) -> 
         trend = "decays" if value.real < 0 else "grows (the hitch folds: unstable)"
         return f"{name}: hitch {name[3:]}'s mode, {trend}"
     return f"{name}: {'stable' if value.real < 0 else 'unstable'}"
+
+
+def point_row(train, cart: int, offset: float = 0.0) -> np.ndarray:
+    """C with C x = the lateral offset (y, left of straight motion along +x) of the point ``offset``
+    m ahead of cart ``cart``'s axle B_k on its axis (k counted from 0), to first order in the
+    straight model's x = (y, th_1, phi_2..phi_n, psi): y_P = y - sum over the segments from A_1 back
+    to B_k of their length times their heading (A_j to B_j, then B_j to A_{j+1}) + offset th_k, with
+    th_k = th_1 - phi_2 - ... - phi_k."""
+    row = np.zeros(train.n + 2)
+    row[0] = 1.0
+    for k in range(cart + 1):
+        c = train.carts[k]
+        length = c.length - offset if k == cart else c.length + c.hitch_offset  # times -th_k
+        row += length * heading_row(train, k) * -1.0
+    return row
+
+
+def heading_row(train, cart: int) -> np.ndarray:
+    """D with D x = th_k, the heading of cart ``cart`` (from 0): th_1 - phi_2 - ... - phi_k."""
+    row = np.zeros(train.n + 2)
+    row[1] = 1.0
+    row[2:cart + 2] = -1.0
+    return row
 
 
 def turn_closed_form(train, speed: float, steering: float) -> list[complex]:

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...symbolic.linear import linearize
+from ...symbolic.linear import heading_row as cart_heading_row
+from ...symbolic.linear import linearize, point_row
 
 #: m: the largest lateral error of the last axle the gain is shown (farther away, the line is
 #: moved towards the train by the difference): the linear gain's steering for a large offset would
@@ -53,26 +54,12 @@ class Gains:
 
 def last_axle_row(train) -> np.ndarray:
     """C with C x = the last axle's lateral offset to first order, x = (y, th_1, phi_2..phi_n, psi)."""
-    n = train.n
-    # headings th_k = th_1 - sum_{j<=k} phi_j; each segment's length times its heading
-    lengths = []  # per cart k: the length behind A_k to B_k, plus B_k to A_{k+1} if k < n
-    for k, cart in enumerate(train.carts):
-        lengths.append(cart.length + (cart.hitch_offset if k < n - 1 else 0.0))
-    row = np.zeros(n + 2)
-    row[0] = 1.0
-    for k in range(n):
-        row[1] -= lengths[k]  # th_1's share
-        for j in range(1, k + 1):  # phi_{j+1} enters th_k with a minus sign
-            row[1 + j] += lengths[k]
-    return row
+    return point_row(train, train.n - 1)
 
 
 def heading_row(train) -> np.ndarray:
     """D with D x = th_n, the last cart's heading."""
-    row = np.zeros(train.n + 2)
-    row[1] = 1.0
-    row[2:train.n + 1] = -1.0
-    return row
+    return cart_heading_row(train, train.n - 1)
 
 
 def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 10.0, q_heading: float = 10.0,

@@ -1,0 +1,170 @@
+"""Transits: getting the working point from one place of the route to the next, raised, on a path
+the train can drive (arcs of its radius R), inside the field.
+
+A transit is the shortest Dubins path between the two poses when it stays inside the field
+(obstacles excluded); otherwise it goes along the headland: a Dubins path onto the innermost
+headland pass that goes round (the boundary's or an obstacle's), along that pass the shorter way,
+and a Dubins path off it. Where neither stays inside, the shortest is taken and the plan says so.
+Entering a headland ring to work it uses the same approach paths.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely import geometry as sg
+from shapely import ops
+
+from .route import Pose, moves_stretch, polyline_stretch
+from .turns import dubins_paths
+
+#: how far ahead (in radii) and aside the points a path onto a ring aims at are tried
+AIMS = [(k, j) for k in (0.0, 1.0, 2.0, 3.0) for j in (-1.0, 0.0, 1.0)]
+
+
+@dataclass
+class Connection:
+    stretches: list  # Stretch
+    inside: bool  # the whole path stays inside the field
+
+
+def inside(region, stretches) -> bool:
+    """Every stretch within ``region`` (prepared, with a small tolerance)."""
+    return all(region.covers(st.line) for st in stretches)
+
+
+def loop_pose(loop: sg.LineString, t: float, forward: bool) -> Pose:
+    """The pose on ``loop`` at distance ``t``, heading along it (or against it)."""
+    length = loop.length
+    a = loop.interpolate(t % length)
+    b = loop.interpolate((t + 1e-3) % length) if (t + 1e-3) <= length else loop.interpolate(1e-3)
+    heading = math.atan2(b.y - a.y, b.x - a.x) + (0.0 if forward else math.pi)
+    return Pose(a.x, a.y, heading)
+
+
+def loop_part(loop: sg.LineString, t0: float, t1: float, forward: bool) -> sg.LineString:
+    """``loop`` from distance t0 to t1 along it (forward) or against it, wrapping round its start."""
+    length = loop.length
+    t0, t1 = t0 % length, t1 % length
+    if not forward:
+        return loop_part(loop, t1, t0, True).reverse()
+    if t1 > t0:
+        return ops.substring(loop, t0, t1)
+    first = ops.substring(loop, t0, length)
+    second = ops.substring(loop, 0.0, t1) if t1 > 0 else None
+    coords = list(first.coords) if not first.is_empty and first.geom_type == "LineString" else []
+    if second is not None and second.geom_type == "LineString":
+        coords += list(second.coords)[1:]
+    return sg.LineString(coords)
+
+
+def loop_from(loop: sg.LineString, t: float, forward: bool) -> sg.LineString:
+    """The whole ``loop`` starting and ending at distance ``t``, driven forward or backward."""
+    length = loop.length
+    t = t % length
+    coords = list(ops.substring(loop, t, length).coords) if t < length else [loop.coords[0]]
+    if t > 0:
+        coords += list(ops.substring(loop, 0.0, t).coords)[1:]
+    line = sg.LineString(coords)
+    return line if forward else line.reverse()
+
+
+def shortest(candidates, region) -> Connection:
+    """The shortest candidate (a list of stretches) inside ``region``, else the shortest."""
+    candidates = [c for c in candidates if c]
+    ranked = sorted(candidates, key=lambda c: sum(st.length for st in c))
+    for c in ranked:
+        if inside(region, c):
+            return Connection(c, True)
+    return Connection(ranked[0], False)
+
+
+def dubins_stretches(kind: str, start: Pose, goal: Pose, radius: float, region, spacing: float) -> list:
+    """Stretches of the shortest Dubins path from ``start`` to ``goal`` inside ``region`` (else the
+    shortest), [] when start and goal coincide."""
+    if math.hypot(goal.x - start.x, goal.y - start.y) < 1e-9 and \
+            abs(math.remainder(goal.heading - start.heading, 2 * math.pi)) < 1e-9:
+        return []
+    options = [moves_stretch(kind, start, moves, spacing=spacing) for moves in dubins_paths(start, goal, radius)]
+    if not options:
+        return []
+    for option in options:
+        if inside(region, option):
+            return option
+    return options[0]
+
+
+def onto_loop(here: Pose, loop: sg.LineString, radius: float, region, spacing: float):
+    """[(stretches, t, forward)]: Dubins paths from ``here`` onto ``loop`` at points ahead and
+    aside, in both directions of the loop."""
+    u = np.array([math.cos(here.heading), math.sin(here.heading)])
+    left = np.array([-u[1], u[0]])
+    out = []
+    for k, j in AIMS:
+        aim = here.xy + radius * (k * u + j * left)
+        t = loop.project(sg.Point(aim))
+        for forward in (True, False):
+            goal = loop_pose(loop, t, forward)
+            out.append((dubins_stretches("transit", here, goal, radius, region, spacing), t, forward))
+    return out
+
+
+def off_loop(goal: Pose, loop: sg.LineString, radius: float, region, spacing: float):
+    """[(stretches, t, forward)]: Dubins paths from ``loop`` (at points behind and aside the goal)
+    onto ``goal``."""
+    u = np.array([math.cos(goal.heading), math.sin(goal.heading)])
+    left = np.array([-u[1], u[0]])
+    out = []
+    for k, j in AIMS:
+        aim = goal.xy - radius * (k * u + j * left)
+        t = loop.project(sg.Point(aim))
+        for forward in (True, False):
+            start = loop_pose(loop, t, forward)
+            out.append((dubins_stretches("transit", start, goal, radius, region, spacing), t, forward))
+    return out
+
+
+def along(loop: sg.LineString, t0: float, t1: float, forward: bool) -> float:
+    """The distance from t0 to t1 along ``loop`` (forward) or against it."""
+    return ((t1 - t0) if forward else (t0 - t1)) % loop.length
+
+
+def transit(here: Pose, goal: Pose, radius: float, region, loops, spacing: float) -> Connection:
+    """From ``here`` to ``goal`` (module docstring)."""
+    direct = dubins_stretches("transit", here, goal, radius, region, spacing)
+    if not direct or inside(region, direct):
+        return Connection(direct, True)
+    candidates = [direct]
+    for loop in loops:
+        ons = [o for o in onto_loop(here, loop, radius, region, spacing) if inside(region, o[0])]
+        offs = [o for o in off_loop(goal, loop, radius, region, spacing) if inside(region, o[0])]
+        pairs = [(sum(st.length for st in on + off) + along(loop, t0, t1, fwd), on, off, t0, t1, fwd)
+                 for on, t0, fwd in ons for off, t1, fwd1 in offs if fwd == fwd1]
+        if not pairs:
+            continue
+        _, on, off, t0, t1, fwd = min(pairs, key=lambda p: p[0])
+        part = loop_part(loop, t0, t1, fwd) if along(loop, t0, t1, fwd) > 1e-6 else None
+        candidates.append(on + ([polyline_stretch("transit", part, False, spacing=spacing)] if part else []) + off)
+    return shortest(candidates, region)
+
+
+def onto_ring(here: Pose, loop: sg.LineString, radius: float, region, spacing: float):
+    """(approach stretches, the ring driven from where they meet it, inside?): the shortest way
+    onto ``loop`` that stays inside, the loop then driven once round."""
+    options = onto_loop(here, loop, radius, region, spacing)
+    ranked = sorted(options, key=lambda o: sum(st.length for st in o[0]))
+    for stretches, t, forward in ranked:
+        if inside(region, stretches):
+            return stretches, loop_from(loop, t, forward), True
+    stretches, t, forward = ranked[0]
+    return stretches, loop_from(loop, t, forward), False
+
+
+def region_of(polygon, tolerance: float = 1e-6):
+    """The field (obstacles excluded) as the checks read it, prepared."""
+    region = polygon.buffer(tolerance)
+    shapely.prepare(region)
+    return region
+

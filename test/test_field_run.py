@@ -1,0 +1,121 @@
+"""``mta field run`` and ``mta field report``: a field planned, worked and measured from the command
+line, its files read back and held to each other and to the plan (the route driven is the plan's,
+the areas add up), a plan read from ``mta field plan``'s folder, the pictures drawn; bad input
+refused in one line (exit 2) with nothing written, and no output overwriting an input."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import shapely
+
+from mta_sim_ros.cli import main
+from mta_sim_ros.field.boundary import load_field
+from mta_sim_ros.field.route_io import read_route
+
+from fieldcli import field_command, field_refused
+
+FIELD = """name: small
+boundary: [[0, 0], [240, 0], [240, 150], [0, 150]]
+headlands: 1
+entry: [0, 0]
+"""
+
+
+def mta(capsys, *args) -> tuple[int, str, str]:
+    return field_command(capsys, *args)
+
+
+def refused(capsys, expected: tuple, *args) -> str:
+    return field_refused(capsys, expected, *args)
+
+
+@pytest.fixture(scope="module")
+def field_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("field") / "small.yaml"
+    path.write_text(FIELD)
+    return path
+
+
+@pytest.fixture(scope="module")
+def worked(field_file, tmp_path_factory):
+    """The small field planned (mta field plan), then worked from that plan (mta field run --plan)."""
+    plans = tmp_path_factory.mktemp("plan")
+    out = tmp_path_factory.mktemp("run")
+    assert main(["field", "plan", str(field_file), "--out", str(plans)]) == 0
+    assert main(["field", "run", str(field_file), "--plan", str(plans), "--out", str(out)]) == 0
+    return plans, out
+
+
+def test_a_run_writes_its_trace_coverage_and_figures(worked, field_file):
+    plans, out = worked
+    assert sorted(p.name for p in out.iterdir()) == ["coverage.json", "metrics.json", "metrics.md", "trace.npz"]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["verdict"] == "ok" and metrics["reason"] == ""
+    figures = metrics["figures"]
+    wkt = {k: shapely.from_wkt(v) for k, v in json.loads((out / "coverage.json").read_text())["wkt"].items()}
+    field = load_field(field_file)
+    assert figures["field_area_ha"] == pytest.approx(240 * 150 / 1e4, rel=1e-12)
+    assert wkt["field"].equals(field.polygon)
+    # the areas add up: target = its worked part + skipped, and the causes are the skip
+    target_worked = wkt["target"].intersection(wkt["worked"]).area
+    assert target_worked + wkt["skipped"].area == pytest.approx(wkt["target"].area, rel=1e-9)
+    causes = sum(wkt[f"skipped_{c}"].area for c in ("boundary", "turns", "tracking"))
+    assert causes == pytest.approx(wkt["skipped"].area, rel=1e-9)
+    assert figures["worked_area_ha"] == pytest.approx(wkt["worked"].area / 1e4, rel=1e-12)
+    with np.load(out / "trace.npz") as npz:
+        t, axle, lowered = npz["t"], npz["axle"], npz["lowered"]
+        route_xy = npz["route_xy"]
+        assert list(npz["carts"]) == ["tractor", "air_cart", "seeder"]
+    assert axle.shape == (t.size, 3, 2) and lowered.shape == t.shape
+    assert np.allclose(np.diff(t), float(metrics["controller"]["settings"]["tick"]))
+    assert figures["total_time_h"] * 3600 == pytest.approx(t[-1], rel=1e-12)
+    planned = read_route(plans / "plan.mcap", field).route
+    np.testing.assert_array_equal(route_xy, planned.xy)  # the route driven is the plan's
+    text = (out / "metrics.md").read_text()
+    assert "| worked, ha |" in text and "Verdict: ok" in text and "Where the time went" in text
+
+
+def test_the_report_draws_the_run(worked, capsys, tmp_path):
+    _, out = worked
+    code, printed, err = mta(capsys, "report", out, "--out", tmp_path)
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["field.png", "report.md", "tracking.png"]
+    for name in ("field.png", "tracking.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    report = (tmp_path / "report.md").read_text()
+    assert "| skipped by tracking error, ha |" in report and "(field.png)" in report and "(tracking.png)" in report
+
+
+def test_a_folder_that_is_not_a_run_is_refused(capsys, tmp_path):
+    refused(capsys, ("run:", "a folder of mta field run", "trace.npz"), "report", tmp_path)
+    (tmp_path / "trace.npz").write_bytes(b"not a zip")
+    for name in ("coverage.json", "metrics.json"):
+        (tmp_path / name).write_text("{}")
+    refused(capsys, ("run:", "a readable field run"), "report", tmp_path)
+
+
+def test_bad_input_is_refused_in_one_line_with_nothing_written(capsys, tmp_path, field_file):
+    out = tmp_path / "out"
+    refused(capsys, ("file", "not found"), "run", tmp_path / "missing.yaml", "--out", out)
+    refused(capsys, ("--turn-speed", "in (0, 20] m/s"), "run", field_file, "--turn-speed", "0", "--out", out)
+    refused(capsys, ("--plan", "an existing plan folder"), "run", field_file, "--plan", tmp_path / "nope",
+            "--out", out)
+    refused(capsys, ("--plan", "a plan folder holding plan.mcap"), "run", field_file, "--plan", tmp_path,
+            "--out", out)
+    no_implement = tmp_path / "bare.yaml"
+    text = open("config/trains/default.yaml").read()
+    no_implement.write_text(text[:text.index("implement:")] + text[text.index("steering_actuator:"):])
+    refused(capsys, ("implement", "(missing)"), "run", field_file, "--train", no_implement, "--out", out)
+    assert not out.exists()
+
+
+def test_no_output_overwrites_an_input(capsys, tmp_path):
+    """A GeoJSON field file named as one of the run's outputs, in the output folder: refused."""
+    field = tmp_path / "metrics.json"
+    shutil.copy("config/fields/kuban.geojson", field)
+    before = field.read_bytes()
+    refused(capsys, ("--out", "is not the input"), "run", field, "--out", tmp_path)
+    assert field.read_bytes() == before
