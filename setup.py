@@ -28,6 +28,7 @@ SHARE_GLOBS = (
     'config/*.xml',
     'config/**/*.rviz',
     'config/**/*.json',
+    'config/**/*.geojson',
     'launch/*.launch.py',
 )
 

@@ -173,13 +173,28 @@ def test_make_report_writes_the_figures_and_the_counts(grid, tmp_path):
     assert "12 runs, 6 schemes x 2 scenes" in md
     assert "| ok | 8 |" in md and "| dropped | 4 |" in md and "| stopped | 0 |" in md and "| refused | 0 |" in md
     assert "| dropped | total_length 17 > max 16.75 | 4 |" in md
-    assert "Objectives: x = energy_per_ha_kWh (minimized), y = headland_width_m (minimized)." in md
-    # The straight pass never steers: no headland width, no front; the best runs by x still listed.
-    straight = _section(md, "## Scene straight_pass")
-    assert "No ok run of this scene has both energy_per_ha_kWh and headland_width_m finite." in straight
-    assert _section(straight, "### The best 10 schemes by energy_per_ha_kWh").count("\n| ") == 5  # head + 4 runs
+    # Each scene's own objectives: the headland turn's are a manoeuvre's first three that vary.
     df = results.load_results(folder)
     turn = df[df["scene"] == "headland_turn"]
+    straight_rows = df[df["scene"] == "straight_pass"]
+    assert results.default_objectives(turn)[:2] == ["energy_per_ha_kWh", "headland_width_m"]
+    assert "Objectives: energy_per_ha_kWh (minimized), headland_width_m (minimized)" in _section(
+        md, "## Scene headland_turn")
+    # The straight pass never steers: its headland width is NaN in every run, so it is not one of
+    # its objectives, and its hitch angles stay 0 in every run: not drawn as a distribution.
+    straight = _section(md, "## Scene straight_pass")
+    objectives = results.default_objectives(straight_rows)
+    assert "headland_width_m" not in objectives and len(objectives) >= 2
+    assert all(results.varying(straight_rows, m) for m in objectives)
+    assert f"Objectives: {objectives[0]} (minimized)" in straight
+    assert not results.varying(straight_rows, "max_hitch_angle_deg")
+    assert "Not drawn as distributions" in straight and "max_hitch_angle_deg" in straight.split("Not drawn")[1]
+    assert _section(straight, f"### The best 10 schemes by {objectives[0]}").count("\n| ") == 5  # head + 4 runs
+    # Asked for, a metric a scene lacks is said there with what it has, the scene's own standing in.
+    asked = report.make_report(folder, x="energy_per_ha_kWh", y="headland_width_m", out=tmp_path / "asked")[-1]
+    straight = _section(asked.read_text(), "## Scene straight_pass")
+    assert "headland_width_m is not defined in this scene (no ok run has it finite); defined here: " in straight
+    assert "energy_per_ha_kWh" in straight.split("defined here: ")[1].splitlines()[0]
     front = results.pareto_front(turn, "energy_per_ha_kWh", "headland_width_m")
     assert len(front) >= 1
     table = _section(_section(md, "## Scene headland_turn"),
@@ -192,7 +207,7 @@ def test_make_report_writes_the_figures_and_the_counts(grid, tmp_path):
                                out=tmp_path / "r")
     assert [p.name for p in paths] == ["pareto_headland_turn.png", "scatter_headland_turn.png", "report.md"]
     md = paths[-1].read_text()
-    assert "y = min_jackknife_margin_deg (maximized)" in md and "## Scene straight_pass" not in md
+    assert "min_jackknife_margin_deg (maximized)" in md and "## Scene straight_pass" not in md
     assert _section(md, "### The best 2 schemes by energy_kWh").count("\n| ") == 3
 
 
@@ -207,6 +222,14 @@ def test_bad_names_and_folders_are_one_line_faults(grid, tmp_path):
         report.make_report(folder, scene="headland", out=tmp_path / "r")
     with pytest.raises(InputError, match=r"^--x: 'carts\[0\].hitch_offset' must be a metric"):
         results.pareto_front(results.load_results(folder), "carts[0].hitch_offset", "energy_kWh")
+    # A metric no ok run of any scene has finite is refused, naming those that are.
+    df = results.load_results(folder)
+    df["headland_width_m"] = float("nan")
+    (tmp_path / "nan").mkdir()
+    df.to_parquet(tmp_path / "nan" / "results.parquet")
+    with pytest.raises(InputError, match=r"^--y: 'headland_width_m' must be a metric some ok run has finite: one of "
+                                         r".*energy_per_ha_kWh"):
+        report.make_report(tmp_path / "nan", x="energy_kWh", y="headland_width_m", out=tmp_path / "r")
     missing = tmp_path / "nowhere"
     with pytest.raises(InputError, match=f"^folder: '{missing}' must be a sweep's folder"):
         results.load_results(missing)
@@ -275,11 +298,12 @@ def test_saltelli_sweep_end_to_end(saltelli):
         assert list(indices) == ["carts[0].hitch_offset", "carts[2].length"]
         assert all(math.isfinite(v) for factor in indices.values() for v in factor.values())
         assert results.sobol_indices(design, df, metric, "straight_pass") == indices
-    paths = report.make_report(folder, x="max_offtracking_m")
+    paths = report.make_report(folder, x="max_offtracking_m", y="swept_width_m")
     md = paths[-1].read_text()
     sobol = _section(md, "### Sobol indices")
-    assert sobol.count("| max_offtracking_m | ") == 2
-    assert "headland_width_m: no indices: headland_width_m: missing in 48 of 48 runs" in sobol  # never steers
+    assert sobol.count("| max_offtracking_m | ") == 2 and sobol.count("| swept_width_m | ") == 2
+    with pytest.raises(InputError, match="headland_width_m: missing in 48 of 48 runs"):  # never steers
+        results.sobol_indices(design, df, "headland_width_m", "straight_pass")
     assert "sampling saltelli (N = 8)" in md
 
 

@@ -321,6 +321,10 @@ LABELS = {
 }
 
 
+#: the figures ``metrics`` gives, in order (a sweep's columns of a field scene)
+NAMES = tuple(LABELS)
+
+
 def markdown(result: FieldMetrics) -> str:
     """The figures as a Markdown table, then the verdict and the excursions."""
     lines = ["| figure | value |", "|---|---:|"]

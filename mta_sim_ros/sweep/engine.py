@@ -30,6 +30,7 @@ from ..integrate import IntegrationError
 from ..physics.guards import ModelValidityError
 from ..run.batch import OK, metric_names, run_metrics
 from ..validate import InputError, fail, one_line, show
+from ..field.scene import FieldScene
 from . import spec as sweep_spec
 
 #: seconds to reach a given scheduler, and for its first worker
@@ -51,9 +52,21 @@ def columns(spec) -> list[tuple[str, str]]:
     out = [("run", "int"), ("scheme", "int"), ("scene", "str")]
     out += [(f.name, "float" if f.kind == "number" else "str") for f in spec.factors]
     out += [("train_hash", "str"), ("verdict", "str"), ("reason", "str"), ("level", "str"), ("simulated_s", "float")]
-    out += [(m, "float") for m in metric_names(max_carts(spec))]
+    out += [(m, "float") for m in all_metric_names(spec)]
     out += [("version", "str"), ("seed", "int")]
     return out
+
+
+def all_metric_names(spec) -> list[str]:
+    """The metric columns: a manoeuvre scene's (batch.metric_names), then a field scene's
+    (field.coverage.NAMES) that are not among them, when the spec has field scenes. A run fills
+    its own kind's columns; the others stay NaN."""
+    names = metric_names(max_carts(spec))
+    if sweep_spec.has_field_scenes(spec):
+        from ..field.coverage import NAMES
+
+        names += [n for n in NAMES if n not in names]
+    return names
 
 
 def max_carts(spec) -> int:
@@ -69,7 +82,7 @@ def train_hash(train) -> str:
 def run_schemes(spec, schemes: list[tuple[int, tuple]]) -> list[dict]:
     """The rows of the given (index, scheme) pairs, every scene of each, in order."""
     rows = []
-    names = metric_names(max_carts(spec))
+    names = all_metric_names(spec)
     scenes = spec.scene_names
     fidelity = None if spec.fidelity == "auto" else spec.fidelity
     for index, scheme in schemes:
@@ -86,7 +99,8 @@ def run_schemes(spec, schemes: list[tuple[int, tuple]]) -> list[dict]:
             continue
         for j, scene in enumerate(built):
             try:
-                result = run_metrics(scene, fidelity=fidelity)
+                result = run_field_scene(scene, train) if isinstance(scene, FieldScene) else run_metrics(
+                    scene, fidelity=fidelity)
             except (InputError, ModelValidityError, IntegrationError, ValueError) as err:
                 rows.append(_row(base, index, j, scenes, names, REFUSED, str(err)))
                 continue
@@ -94,6 +108,21 @@ def run_schemes(spec, schemes: list[tuple[int, tuple]]) -> list[dict]:
             row.update(level=result.level, simulated_s=result.simulated, **result.metrics)
             rows.append(row)
     return rows
+
+
+def run_field_scene(scene, train):
+    """A field scene worked whole by ``train`` (controllers/implement/work.py), as a batch.RunResult:
+    its figures (field.coverage.NAMES), the verdict and reason of the run, the level (dynamic: the
+    implement-tracking loop steps the article's model)."""
+    from ..controllers.implement.design import Settings
+    from ..controllers.implement.work import work_field
+    from ..field.turning import implement_of
+    from ..run.batch import RunResult
+
+    implement_of(train)  # a train without an implement is refused in one line
+    work = work_field(scene.field, train, scene.options(train), Settings(**scene.drive))
+    trace = work.run.trace
+    return RunResult(dict(work.result.values), trace.verdict, trace.reason, float(trace.t[-1]), "dynamic", None)
 
 
 def _row(base: dict, index: int, j: int, scenes: list, names: list, verdict: str, reason: str) -> dict:

@@ -1,15 +1,18 @@
 """The report of a sweep: Pareto fronts, scatter matrices, the best schemes, Sobol indices
 (results.py defines them).
 
-``make_report(folder)`` writes into ``folder/report/`` (or ``out``), per scene of the results:
+``make_report(folder)`` writes into ``folder/report/`` (or ``out``), per scene of the results, for
+the scene's objectives (those asked for, else the first of a field's time, fuel and skipped area,
+or of a manoeuvre's energy per hectare, headland width, off-tracking..., that vary over its runs):
 
-* ``pareto_<scene>.png``: x against y for every ok run of the scene (grey) and the Pareto front
-  (highlighted, connected in order of x);
-* ``scatter_<scene>.png``: a scatter matrix of the ok runs: the number factors, x, y,
-  energy_kWh and max_hitch_angle_deg (histograms on the diagonal);
+* ``pareto_<scene>.png``: the first objective against the second for every ok run of the scene
+  (grey) and the Pareto front (highlighted, connected in order of the first);
+* ``scatter_<scene>.png``: a scatter matrix of the ok runs: the number factors, the objectives,
+  energy_kWh and max_hitch_angle_deg (histograms on the diagonal), leaving out what does not vary
+  (a constant, a metric no run has: said in the report, not drawn as a distribution);
 * and one ``report.md``: runs by verdict and the reasons of the runs that are not ok, then per
-  scene the Pareto front, the best schemes by x and, for a Saltelli sweep, the Sobol indices of
-  x and y.
+  scene the Pareto front, the best schemes by each objective and, for a Saltelli sweep, the Sobol
+  indices of the first two.
 """
 from __future__ import annotations
 
@@ -30,6 +33,9 @@ from .results import (
     axis_label,
     best_runs,
     check_metric,
+    default_objectives,
+    defined,
+    defined_metrics,
     factor_columns,
     file_part,
     load_results,
@@ -39,6 +45,7 @@ from .results import (
     sobol_indices,
     stored_design,
     sweep_name,
+    varying,
 )
 
 VERDICTS = (OK, STOPPED, DROPPED, REFUSED)
@@ -56,17 +63,26 @@ FIGURE_DPI = 100
 # --------------------------------------------------------------------------- the report
 
 
-def make_report(folder: str | os.PathLike, x: str = "energy_per_ha_kWh", y: str = "headland_width_m",
+def make_report(folder: str | os.PathLike, x: str | None = None, y: str | None = None,
                 scene: str | None = None, best: int = 10, out: str | os.PathLike | None = None,
                 minimize: tuple[bool, bool] | None = None) -> list[Path]:
     """Write the report of the sweep in ``folder`` (module docstring) into ``out`` (default
-    ``folder/report/``) for ``scene`` (None: every scene of the results); ``best`` runs in the
+    ``folder/report/``) for ``scene`` (None: every scene of the results); ``best`` runs in each
     table of the best ones; ``minimize`` per objective (None: minimized unless in MAXIMIZED).
-    Returns the paths written, report.md last."""
+
+    The objectives: ``x`` and ``y`` where given, else per scene the metrics results.default_objectives
+    picks (a field scene: time, fuel, skipped area; a manoeuvre: energy per hectare, headland width,
+    ...). A metric asked for that no run of a scene has finite is said in that scene's section with
+    the metrics it does have, and the scene's defaults stand in; asked for and finite in no scene at
+    all, it is refused (InputError naming the metrics that are). Returns the paths written,
+    report.md last."""
     df = load_results(folder)
-    check_metric(df, x, "--x")
-    check_metric(df, y, "--y")
-    if y == x:
+    for given, field in ((x, "--x"), (y, "--y")):
+        if given is not None:
+            check_metric(df, given, field)
+            if not defined(df, given):
+                fail(field, show(given), f"a metric some ok run has finite: one of {', '.join(defined_metrics(df))}")
+    if x is not None and y == x:
         fail("--y", show(y), f"another metric than --x ({x})")
     if not (isinstance(best, numbers.Integral) and not isinstance(best, bool) and validate.COUNT.test(best)):
         fail("--best", show(best), f"a whole number {validate.COUNT.text}")
@@ -74,8 +90,6 @@ def make_report(folder: str | os.PathLike, x: str = "energy_per_ha_kWh", y: str 
     if scene is not None and scene not in scenes:
         fail("--scene", show(scene), f"a scene of the results: one of {', '.join(scenes)}"
              f"{validate.closest(scene, scenes)}")
-    if minimize is None:
-        minimize = (x not in MAXIMIZED, y not in MAXIMIZED)
     folder = Path(folder)
     out = validate.output_folder(folder / "report" if out is None else out, "--out")
     try:
@@ -87,39 +101,60 @@ def make_report(folder: str | os.PathLike, x: str = "energy_per_ha_kWh", y: str 
     sections = []
     for s in scenes if scene is None else [scene]:
         rows = df[(df["scene"] == s).to_numpy(dtype=bool)]
-        front = pareto_front(rows, x, y, minimize)
+        objectives, said = scene_objectives(rows, x, y)
+        sense = tuple(m not in MAXIMIZED for m in objectives) if minimize is None else tuple(minimize) + (True,)
         pareto_png = out / f"pareto_{file_part(s)}.png"
         scatter_png = out / f"scatter_{file_part(s)}.png"
-        plot_pareto(rows, front, x, y, pareto_png, f"{name}: {s}")
-        plot_scatter(rows, [x, y], scatter_png, f"{name}: {s}")
-        written += [pareto_png, scatter_png]
+        front = None
+        if len(objectives) >= 2:
+            front = pareto_front(rows, objectives[0], objectives[1], sense[:2])
+            plot_pareto(rows, front, objectives[0], objectives[1], pareto_png, f"{name}: {s}")
+            written.append(pareto_png)
+        drawn, degenerate = plot_scatter(rows, objectives, scatter_png, f"{name}: {s}")
+        written.append(scatter_png)
         sobol = None
         if design.method == "saltelli":
             sobol = {}
-            for metric in (x, y):
+            for metric in objectives[:2]:
                 try:
                     sobol[metric] = sobol_indices(design, df, metric, s)
                 except InputError as err:
                     sobol[metric] = str(err)
-        sections.append(_scene_section(s, rows, front, best_runs(df, x, y, s, best, minimize), x, y, best, minimize,
-                                       pareto_png, scatter_png, sobol, factor_columns(df)))
+        sections.append(_scene_section(s, rows, front, objectives, sense, best, said, degenerate, pareto_png,
+                                       scatter_png, sobol, factor_columns(df)))
     md = out / "report.md"
-    md.write_text(_header(name, folder, df, design, x, y, minimize) + _verdicts(df) + "".join(sections),
-                  encoding="utf-8")
+    md.write_text(_header(name, folder, df, design, x, y) + _verdicts(df) + "".join(sections), encoding="utf-8")
     return written + [md]
 
 
-def _header(name: str, folder: Path, df, design: Design, x: str, y: str, minimize) -> str:
+def scene_objectives(rows, x: str | None, y: str | None) -> tuple[list[str], list[str]]:
+    """(the scene's objectives, what is said of the ones asked for that it lacks)."""
+    said = []
+    asked = [m for m in (x, y) if m is not None]
+    missing = [m for m in asked if not defined(rows, m)]
+    for m in missing:
+        said.append(f"{m} is not defined in this scene (no ok run has it finite); defined here: "
+                    f"{', '.join(defined_metrics(rows)) or 'none'}")
+    kept = [m for m in asked if m not in missing]
+    objectives = kept + [m for m in default_objectives(rows) if m not in kept]
+    objectives = objectives[:max(2, len(kept))] if asked else objectives
+    if asked and kept != asked:
+        said.append(f"objectives here: {', '.join(objectives)}")
+    return objectives, said
+
+
+def _header(name: str, folder: Path, df, design: Design, x, y) -> str:
     scenes = scene_names(df)
     schemes = df["scheme"].nunique()
-    sense = ["minimized" if m else "maximized" for m in minimize]
+    asked = ", ".join(m for m in (x, y) if m) or "per scene, the first that vary of a field's (time, fuel, " \
+        "skipped area) or a manoeuvre's (energy per ha, headland width, off-tracking)"
     lines = [f"# Sweep {name}", "",
              f"Results: `{folder / RESULTS}`: {len(df)} runs, {schemes} schemes x {len(scenes)} scenes "
              f"({', '.join(scenes)}); sampling {design.method}"
              + {"saltelli": f" (N = {design.count})", "random": f" (count {design.count})"}.get(design.method, "")
              + ".",
              f"Factors: {', '.join(factor_columns(df)) or '(none)'}.",
-             f"Objectives: x = {x} ({sense[0]}), y = {y} ({sense[1]}).", ""]
+             f"Objectives: {asked}.", ""]
     return "\n".join(lines) + "\n"
 
 
@@ -142,26 +177,45 @@ def _verdicts(df) -> str:
     return "\n".join(lines) + "\n\n"
 
 
-def _scene_section(scene: str, rows, front, top, x: str, y: str, best: int, minimize, pareto_png: Path,
-                   scatter_png: Path, sobol, factors: list[str]) -> str:
-    finite = int(ok_finite(rows, x, y).sum())
-    lines = [f"## Scene {scene}", "", f"![Pareto front]({pareto_png.name})", "",
-             f"![Scatter matrix]({scatter_png.name})", "", f"### Pareto front of {x} and {y}", ""]
-    if front.empty:
-        lines.append(f"No ok run of this scene has both {x} and {y} finite.")
-    else:
-        lines.append(f"{len(front)} of the {finite} ok runs with both finite, best {x} first.")
-        lines += [""] + _table(front, factors + [x, y, "run"])
-    lines += ["", f"### The best {best} schemes by {x}", ""]
-    if top.empty:
-        lines.append(f"No ok run of this scene has {x} finite.")
-    else:
-        lines.append(f"{'Lowest' if minimize[0] else 'Highest'} {x} first, ties by {y}.")
-        ranked = top.copy()
-        ranked.insert(0, "rank", np.arange(1, len(top) + 1))
-        lines += [""] + _table(ranked, ["rank"] + factors + [x, y, "run"])
+def _scene_section(scene: str, rows, front, objectives: list[str], sense, best: int, said: list[str],
+                   degenerate: list[str], pareto_png: Path, scatter_png: Path, sobol, factors: list[str]) -> str:
+    lines = [f"## Scene {scene}", ""] + [f"- {_cell(n)}" for n in said] + ([""] if said else [])
+    if not objectives:
+        return "\n".join(lines + ["No metric of this scene has a finite value in an ok run.", "", ""])
+    words = [f"{m} ({'minimized' if m_ else 'maximized'})" for m, m_ in zip(objectives, sense)]
+    lines += [f"Objectives: {', '.join(words)}.", ""]
+    if front is not None:
+        lines += [f"![Pareto front]({pareto_png.name})", ""]
+    lines += [f"![Scatter matrix]({scatter_png.name})", ""]
+    if degenerate:
+        lines += ["Not drawn as distributions (constant or undefined over this scene's ok runs): "
+                  + ", ".join(_cell(d) for d in degenerate) + ".", ""]
+    shown = factors + objectives + ["run"]
+    if front is not None:
+        x, y = objectives[:2]
+        lines += [f"### Pareto front of {x} and {y}", ""]
+        if front.empty:
+            lines.append(f"No ok run of this scene has both {x} and {y} finite.")
+        else:
+            lines.append(f"{len(front)} of the {int(ok_finite(rows, x, y).sum())} ok runs with both finite, "
+                         f"best {x} first.")
+            lines += [""] + _table(front, shown)
+        lines.append("")
+    for i, metric in enumerate(objectives):
+        others = [m for m in objectives if m != metric]
+        top = best_runs(rows, metric, others[0] if others else metric, scene, best, (sense[i], sense[(i + 1) % len(sense)]))
+        lines += [f"### The best {best} schemes by {metric}", ""]
+        if top.empty:
+            lines.append(f"No ok run of this scene has {metric} finite.")
+        else:
+            lines.append(f"{'Lowest' if sense[i] else 'Highest'} {metric} first"
+                         + (f", ties by {others[0]}." if others else "."))
+            ranked = top.copy()
+            ranked.insert(0, "rank", np.arange(1, len(top) + 1))
+            lines += [""] + _table(ranked, ["rank"] + shown)
+        lines.append("")
     if sobol is not None:
-        lines += ["", "### Sobol indices", "",
+        lines += ["### Sobol indices", "",
                   "First-order S1 and total ST, with their 95 % confidence half-widths (SALib, 100 bootstrap "
                   "resamples).", "", "| metric | factor | S1 | S1 conf | ST | ST conf |",
                   "|---|---|---:|---:|---:|---:|"]
@@ -242,16 +296,19 @@ def plot_pareto(rows, front, x: str, y: str, path: Path, title: str) -> Path:
     return path
 
 
-def plot_scatter(rows, metrics: list[str], path: Path, title: str) -> Path:
-    """A scatter matrix of the ok runs: the number factors, ``metrics`` and SCATTER_METRICS (those
-    of the results with some finite value); each pair from the runs where both are finite,
-    histograms on the diagonal."""
+def plot_scatter(rows, metrics: list[str], path: Path, title: str) -> tuple[list[str], list[str]]:
+    """A scatter matrix of the ok runs: the number factors, ``metrics`` and SCATTER_METRICS, each
+    pair from the runs where both are finite, histograms on the diagonal. A column that does not
+    vary over the ok runs (constant, or finite in none) is not a distribution: it is left out.
+    Returns (the columns drawn, those left out)."""
     from pandas.api.types import is_numeric_dtype
 
     ok = rows[(rows["verdict"] == OK).to_numpy(dtype=bool)]
     names = [c for c in factor_columns(rows) if is_numeric_dtype(rows[c])]
     names += [m for m in list(metrics) + list(SCATTER_METRICS) if m in rows.columns]
-    names = [c for c in dict.fromkeys(names) if np.isfinite(ok[c].to_numpy(dtype=float)).any()]
+    names = list(dict.fromkeys(names))
+    degenerate = [c for c in names if not varying(rows, c)]
+    names = [c for c in names if c not in degenerate]
     ok, sampled = _sample(ok, MAX_SCATTER)
     n = len(names)
     cell = min(1.9, 16.0 / max(n, 1))
@@ -259,7 +316,7 @@ def plot_scatter(rows, metrics: list[str], path: Path, title: str) -> Path:
     if n == 0:
         ax = fig.add_subplot()
         ax.set_axis_off()
-        ax.text(0.5, 0.5, "no ok run with a finite value", ha="center", va="center")
+        ax.text(0.5, 0.5, "no column varies over the ok runs", ha="center", va="center")
     else:
         axes = fig.subplots(n, n, squeeze=False, sharex="col")
         for i, yi in enumerate(names):
@@ -282,4 +339,4 @@ def plot_scatter(rows, metrics: list[str], path: Path, title: str) -> Path:
                     ax.tick_params(labelleft=False)
     fig.suptitle(f"{title}: ok runs" + (f" (a sample of {len(ok)})" if sampled else f" ({len(ok)})"), fontsize=10)
     fig.savefig(path, dpi=FIGURE_DPI)
-    return path
+    return names, degenerate

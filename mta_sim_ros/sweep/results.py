@@ -43,7 +43,13 @@ REQUIRED = ("run", "scheme", "scene", "train_hash", "verdict", "reason")
 #: numeric columns that are neither factors nor metrics
 NOT_METRICS = ("run", "scheme", "simulated_s", "seed")
 #: metrics where more is better: report.make_report maximizes them unless told otherwise
-MAXIMIZED = ("min_jackknife_margin_deg", "worked_area_ha", "distance_m")
+MAXIMIZED = ("min_jackknife_margin_deg", "worked_area_ha", "distance_m", "coverage_pct", "field_efficiency_pct",
+             "working_distance_km")
+#: what a report compares when it is not told: per scene, the first of these that vary over its ok
+#: runs (then those defined but constant): a field worked whole, and a manoeuvre scene
+FIELD_OBJECTIVES = ("total_time_h", "fuel_l", "skipped_area_ha", "energy_kWh", "double_worked_ha")
+SCENE_OBJECTIVES = ("energy_per_ha_kWh", "headland_width_m", "max_offtracking_m", "swept_width_m", "peak_power_kW",
+                    "energy_kWh", "max_hitch_angle_deg")
 #: the units of a metric, by the last part of its name
 UNITS = {"kWh": "kWh", "kW": "kW", "kN": "kN", "ha": "ha", "deg": "deg", "m": "m", "s": "s"}
 #: the seed of SALib's bootstrap of the confidence intervals (SALib ignores a seed of 0)
@@ -113,6 +119,38 @@ def check_metric(df, name, field: str) -> str:
     if not isinstance(name, str) or name not in known:
         fail(field, show(name), f"a metric of the results: one of {', '.join(known)}{validate.closest(name, known)}")
     return name
+
+
+def finite_values(rows, name: str) -> np.ndarray:
+    """The finite values of column ``name`` over the ok rows."""
+    v = rows[name].to_numpy(dtype=float)[(rows["verdict"] == OK).to_numpy(dtype=bool)]
+    return v[np.isfinite(v)]
+
+
+def defined(rows, name: str) -> bool:
+    """A metric some ok row has finite."""
+    return name in rows.columns and finite_values(rows, name).size > 0
+
+
+def varying(rows, name: str) -> bool:
+    """A metric with two or more different finite values over the ok rows (else degenerate: not a
+    distribution to draw, nor an objective to trade)."""
+    return name in rows.columns and np.unique(finite_values(rows, name)).size > 1
+
+
+def defined_metrics(rows) -> list[str]:
+    return [m for m in metric_columns(rows) if defined(rows, m)]
+
+
+def default_objectives(rows, count: int = 3) -> list[str]:
+    """The objectives of a scene's rows when none are given: the first ``count`` of FIELD_OBJECTIVES
+    (a field scene: one with total_time_h defined) or SCENE_OBJECTIVES that vary over its ok runs,
+    then the defined constant ones; at least two where two metrics are defined at all."""
+    preferred = FIELD_OBJECTIVES if defined(rows, "total_time_h") else SCENE_OBJECTIVES
+    pool = list(preferred) + [m for m in defined_metrics(rows) if m not in preferred]
+    chosen = [m for m in pool if varying(rows, m)][:count]
+    chosen += [m for m in pool if defined(rows, m) and m not in chosen][:max(0, 2 - len(chosen))]
+    return chosen
 
 
 def axis_label(name: str) -> str:

@@ -4,7 +4,8 @@ A spec is a YAML file (config/sweeps/hitching.yaml is the worked example)::
 
     name: hitching                      # names the results (default: the file's stem)
     train: ../trains/default.yaml       # the base train, relative to the spec
-    scenes: [../scenes/headland_turn.yaml, ../scenes/straight_pass.yaml]
+    scenes: [../scenes/headland_turn.yaml, ../scenes/straight_pass.yaml]   # or field scenes
+                                        # (../fieldwork/irregular.yaml: a field worked whole)
     fidelity: dynamic                   # the level of every run (default dynamic: one level for all
                                         # schemes, so their metrics compare; auto may pick per scheme)
     sample: {method: grid}              # grid | random (count, seed) | saltelli (count, seed: SALib)
@@ -29,7 +30,9 @@ A spec is a YAML file (config/sweeps/hitching.yaml is the worked example)::
 
 A path names a field of the train file's mapping (``carts[2].hitch_offset``, ``forces.draft[0].width``,
 ``steering_actuator.time_constant``) or, after ``scene.``, of every scene's (``scene.speed``,
-``scene.initial.speed``). The field must be in the base file; the loader checks each scheme's
+``scene.initial.speed``; a field scene's ``scene.plan.angle_deg``, ``scene.plan.turn``,
+``scene.drive.work_speed``). The field must be in the base file (a ``scene.`` field in one scene
+at least: it is set in the scenes that have it, as a field scene's plan beside manoeuvre scenes); the loader checks each scheme's
 values by the train's and scene's own rules, so a range that leaves them is refused here, at its
 ends, before anything runs. Sampling: ``grid`` is every combination (a range has ``steps`` points,
 ends included); ``random`` draws ``count`` schemes, each factor uniform (a range) or equally likely
@@ -49,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from .. import validate
+from ..field.scene import field_scene_from_data, is_field_scene
 from ..physics import loader
 from ..validate import InputError, Range
 
@@ -234,7 +238,10 @@ def _scenes(top, folder: str) -> list:
             validate.fail(where, validate.show(relative), f"a scene file, relative to the spec's folder (not found: "
                           f"{path})", "top level", top.source, SweepSpecError)
         data = loader.read_yaml_mapping(path)
-        scene = loader.load_scene(path)  # checked with the train it names
+        if is_field_scene(data):  # a field and how it is worked (field/scene.py)
+            scene = field_scene_from_data(copy.deepcopy(data), path)
+        else:
+            scene = loader.load_scene(path)  # checked with the train it names
         if scene.name in names:
             validate.fail(where, validate.show(relative), f"a scene of another name (two are named {scene.name!r})",
                           "top level", top.source, SweepSpecError)
@@ -286,8 +293,10 @@ def _factor(s, spec: Spec) -> Factor:
         target, parts = "scene", parts[1:]
         if not parts:
             s.fail("path", path, "a field of the scenes after scene.")
-        for name, data, _ in spec.scenes:
-            _check_target(s, path, data, parts, f"scene {name!r}")
+        holders = [name for name, data, _ in spec.scenes if _holds(data, parts)]
+        if not holders:  # the first scene says what it lacks (a typo, most likely)
+            name, data, _ = spec.scenes[0]
+            _check_target(s, path, data, parts, f"a scene ({name!r} or another)")
     elif parts == ("train",):
         target = "train_file"
     else:
@@ -332,6 +341,19 @@ def _factor(s, spec: Spec) -> Factor:
             s.fail("steps", s.values["steps"], f"left out for method {spec.method} (the range is sampled)")
         steps = 0
     return Factor(path, "number", target, parts, low=low, high=high, steps=steps)
+
+
+def _holds(data, parts) -> bool:
+    """Whether ``data`` has the field ``parts`` names."""
+    node = data
+    for part in parts:
+        if isinstance(part, int) and isinstance(node, list) and part < len(node):
+            node = node[part]
+        elif isinstance(part, str) and isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
+            return False
+    return True
 
 
 def _check_target(s, path: str, data, parts, what: str) -> None:
@@ -425,7 +447,7 @@ def scheme_data(spec: Spec, scheme: tuple) -> tuple[dict, str, list]:
             train["carts"] = [carts[0]] + [carts[i] for i in f.values[int(value)]]
             continue
         new = copy.deepcopy(f.values[int(value)]) if f.kind == "choice" else value
-        for data in [train] if f.target == "train" else [d for _, d, _ in scenes]:
+        for data in [train] if f.target == "train" else [d for _, d, _ in scenes if _holds(d, f.parts)]:
             _set(data, f.parts, new)
     return train, source, scenes
 
@@ -465,8 +487,14 @@ def _shown(f: Factor, value) -> str:
 
 
 def build(spec: Spec, scheme: tuple):
-    """(train, [scene per spec scene]) of a scheme, checked by the loader (SpecError if refused)."""
+    """(train, [scene per spec scene]) of a scheme, checked by the loader (SpecError if refused); a
+    field scene is a field.scene.FieldScene, checked by its own loader (FieldError)."""
     train_data, source, scenes = scheme_data(spec, scheme)
     train = loader.train_from_data(train_data, source)
-    return train, [loader.scene_from_data(data, src, train) for _, data, src in scenes]
+    return train, [field_scene_from_data(data, src) if is_field_scene(data) else loader.scene_from_data(data, src, train)
+                   for _, data, src in scenes]
+
+
+def has_field_scenes(spec: Spec) -> bool:
+    return any(is_field_scene(data) for _, data, _ in spec.scenes)
 

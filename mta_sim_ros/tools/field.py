@@ -17,6 +17,7 @@ an input.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -37,17 +38,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="field_command", required=True, metavar="ACTION")
     q = sub.add_parser("plan", help="the coverage plan of a field for a train: GeoJSON, CSV, nav_msgs/Path",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    q.add_argument("field", help="field file: GeoJSON (WGS84) or YAML (local metres), e.g. fields/rectangle.yaml")
+    q.add_argument("field", help="field file: GeoJSON (WGS84) or YAML (local metres), e.g. fields/rectangle.yaml, "
+                                 "or a field scene (fieldwork/*.yaml: a field and its plan's options)")
     q.add_argument("--train", default="trains/default.yaml",
                    help="train YAML with an implement (default trains/default.yaml)")
     q.add_argument("--angle", type=number_arg(ANGLE), help="swath direction, deg from east counterclockwise "
                                                            "(default: the angle with the fewest swaths)")
-    q.add_argument("--overlap", type=number_arg(OVERLAP), default=0.0,
-                   help="share of the width neighbouring swaths overlap (default 0)")
+    q.add_argument("--overlap", type=number_arg(OVERLAP),
+                   help="share of the width neighbouring swaths overlap (default: the scene's, else 0)")
     q.add_argument("--headlands", type=number_arg(Range.of(0, MAX_HEADLANDS), int),
                    help="headland rings (default: the field's, more if the train's turns need them)")
-    q.add_argument("--route", choices=ROUTES, default="auto", help="swath order (default auto)")
-    q.add_argument("--turn", choices=TURNS, default="auto", help="headland turn kind (default auto)")
+    q.add_argument("--route", choices=ROUTES, help="swath order (default: the scene's, else auto)")
+    q.add_argument("--turn", choices=TURNS, help="headland turn kind (default: the scene's, else auto)")
     q.add_argument("--out", help="folder to write into (default plans/<field name>)")
     q.set_defaults(func=main)
     from . import field_report, field_run
@@ -66,19 +68,19 @@ def main(args: argparse.Namespace) -> int:
 
 def plan_main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
-    from ..field.boundary import load_field
     from ..field.plan import plan_field
+    from ..field.scene import load_field_or_scene
     from ..field.turning import implement_of
-    from ..field.types import PlanOptions
     from ..physics.loader import load_train
 
-    field = load_field(resolve_config_path(args.field))
+    scene = load_field_or_scene(resolve_config_path(args.field))
+    field = scene.field
     train = load_train(resolve_config_path(args.train))
-    _, _, width = implement_of(train)
+    implement_of(train)
     paths = output_paths(args, field, train)
-    options = PlanOptions(width=width, overlap=args.overlap,
-                          angle=None if args.angle is None else math.radians(args.angle),
-                          headlands=args.headlands, route=args.route, turn=args.turn)
+    given = {"overlap": args.overlap, "angle": None if args.angle is None else math.radians(args.angle),
+             "headlands": args.headlands, "route": args.route, "turn": args.turn}
+    options = dataclasses.replace(scene.options(train), **{k: v for k, v in given.items() if v is not None})
     plan = plan_field(field, train, options)
     write_plan(plan, paths)
     print(summary(plan, train))

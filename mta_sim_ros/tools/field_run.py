@@ -32,9 +32,14 @@ import sys
 import time
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..validate import EXIT_INPUT, InputError, Range, fail, number_arg, output_folder, show
+
+if TYPE_CHECKING:
+    from ..controllers.implement.work import Work
 
 EXIT_STOPPED = 3
 OUTPUTS = ("trace.npz", "coverage.json", "metrics.json", "metrics.md")
@@ -44,7 +49,8 @@ SPEED = Range("in (0, 20] m/s", lambda v: 0.0 < v <= 20.0)
 def add_parser(sub) -> None:
     q = sub.add_parser("run", help="work a field closed loop offline and measure it: trace, coverage, figures",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    q.add_argument("field", help="field file: GeoJSON (WGS84) or YAML (local metres), e.g. fields/kuban.geojson")
+    q.add_argument("field", help="field file: GeoJSON (WGS84) or YAML (local metres), e.g. fields/kuban.geojson, "
+                                 "or a field scene (fieldwork/*.yaml: a field, its plan's options, its speeds)")
     q.add_argument("--train", default="trains/default.yaml", help="train YAML with an implement "
                                                                  "(default trains/default.yaml)")
     q.add_argument("--plan", help="a plan folder of mta field plan, or its plan.mcap or plan.csv "
@@ -52,19 +58,27 @@ def add_parser(sub) -> None:
     q.add_argument("--out", help="folder to write into (default runs/<field name>)")
     q.add_argument("--work-speed", type=number_arg(SPEED), help="m/s on working passes (default: the train's "
                                                                  "set speed)")
-    q.add_argument("--turn-speed", type=number_arg(SPEED), default=2.0, help="m/s in turns (default 2)")
+    q.add_argument("--turn-speed", type=number_arg(SPEED), help="m/s in turns (default: the scene's, else 2)")
     q.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
+    from ..controllers.implement.work import work_field
+
     t0 = time.perf_counter()
     try:
-        field, train, paths, plan_path = inputs(args)
+        scene, train, paths, plan_path = inputs(args)
+        field = scene.field
         loaded = time.perf_counter() - t0
-        work = work_field(field, train, plan_path, settings_of(args))
+        t = time.perf_counter()
+        plan = load_plan(plan_path, field, train) if plan_path else None
+        read = time.perf_counter() - t
+        work = work_field(field, train, scene.options(train), settings_of(args, scene), plan=plan)
     except InputError as err:
         print(f"mta field run: {err}", file=sys.stderr)
         return EXIT_INPUT
+    if plan is not None:
+        work.timings["plan"] = read
     work.timings = {"inputs": loaded, **work.timings}
     t = time.perf_counter()
     write_run(paths, work)
@@ -78,20 +92,23 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def settings_of(args: argparse.Namespace):
+def settings_of(args: argparse.Namespace, scene):
+    """The drive's settings: the scene's, each flag given in place of its own."""
     from ..controllers.implement.design import Settings
 
-    return Settings(work_speed=args.work_speed, turn_speed=args.turn_speed)
+    given = {"work_speed": args.work_speed, "turn_speed": args.turn_speed}
+    return Settings(**{**scene.drive, **{k: v for k, v in given.items() if v is not None}})
 
 
 def inputs(args: argparse.Namespace):
-    """(field, train, output paths, plan path or None), every one checked before any work."""
+    """(field scene, train, output paths, plan path or None), every one checked before any work."""
     from ..config import resolve_config_path
-    from ..field.boundary import load_field
+    from ..field.scene import load_field_or_scene
     from ..field.turning import implement_of
     from ..physics.loader import load_train
 
-    field = load_field(resolve_config_path(args.field))
+    scene = load_field_or_scene(resolve_config_path(args.field))
+    field = scene.field
     train = load_train(resolve_config_path(args.train))
     implement_of(train)
     plan_path = plan_file(args.plan) if args.plan else None
@@ -101,7 +118,7 @@ def inputs(args: argparse.Namespace):
         for source in (field.source, train.source, plan_path):
             if source and Path(source).exists() and path.resolve() == Path(source).resolve():
                 fail("--out", show(str(folder)), f"a folder whose {path.name} is not the input {source}")
-    return field, train, paths, plan_path
+    return scene, train, paths, plan_path
 
 
 def plan_file(path: str) -> Path:
@@ -151,36 +168,6 @@ def load_plan(path: Path, field, train):
                                           + ("" if same else "; it differs from the route laid out again here: "
                                              "the ground (inner, target, swaths) is the one laid out")),)
     return dataclasses.replace(ground, route=read.route, segments=read.segments, notes=notes)
-
-
-@dataclasses.dataclass
-class Work:
-    """A field worked and measured: what ``run`` writes."""
-
-    plan: object
-    train: object
-    run: object  # drive.FieldRun
-    result: object  # coverage.FieldMetrics
-    timings: dict  # s: inputs, plan, design, compile, loop, metrics (metrics.json's), then write, total
-
-
-def work_field(field, train, plan_path, settings) -> Work:
-    """Plan (or read) the field, work it closed loop, measure it; each step timed."""
-    from ..controllers.implement.drive import run_field
-    from ..field.coverage import metrics
-    from ..field.plan import plan_field
-    from ..field.types import PlanOptions
-
-    t = time.perf_counter()
-    plan = load_plan(plan_path, field, train) if plan_path else plan_field(
-        field, train, PlanOptions(width=train.implement.width))
-    timings = {"plan": time.perf_counter() - t}
-    run = run_field(plan, train, settings)
-    timings.update(run.timings)
-    t = time.perf_counter()
-    result = metrics(run.trace, train)
-    timings["metrics"] = time.perf_counter() - t
-    return Work(plan, train, run, result, timings)
 
 
 # -- what is written -----------------------------------------------------------------------------------

@@ -130,8 +130,9 @@ def sweep_section() -> list[str]:
         "name": ("string", "the file's stem", "at most 100 letters, digits, '_', '-' or '.'; names the results "
                  "folder sweeps/<name>/"),
         "train": ("string", "**required**", "the base train file, relative to the spec; it must load"),
-        "scenes": ("list of strings", "**required**", f"1 to {sp.MAX_SCENES} scene files, relative to the spec; "
-                   "each must load (with the train it names) and their names differ"),
+        "scenes": ("list of strings", "**required**", f"1 to {sp.MAX_SCENES} scene files, relative to the spec: "
+                   "manoeuvre scenes, or field scenes (a field worked whole: [Field scene file](#field-scene-file)); "
+                   "each must load (a manoeuvre scene with the train it names) and their names differ"),
         "fidelity": ("choice", "dynamic", "one of " + ", ".join(sp.FIDELITY) + ": the level of every run (one "
                      "level for all schemes, so their metrics compare)"),
         "sample": ("mapping", "method grid", "how schemes are drawn: `method` one of " + ", ".join(sp.METHODS) +
@@ -151,9 +152,9 @@ def sweep_section() -> list[str]:
         raise SystemExit(f"formats: sweep spec fields {missing} are not described in {__name__}")
     factor = {
         "path": "a field path such as `carts[2].hitch_offset`, `forces.draft[0].width`, "
-                "`steering_actuator.time_constant` (of the base train), `scene.speed` or `scene.initial.speed` "
-                "(of every scene), or `train` (a choice among train files); at most 200 characters; the field "
-                "must be in the base file",
+                "`steering_actuator.time_constant` (of the base train), `scene.speed`, `scene.initial.speed` or a "
+                "field scene's `scene.plan.angle_deg` (set in every scene that has the field, at least one), or "
+                "`train` (a choice among train files); at most 200 characters; the field must be in the base file",
         "values": "a list of 1 to 100000 numbers (not with low, high, steps)",
         "low, high": "a range, high >= low",
         "steps": f"grid only: a whole number {sp.STEPS.text} of points, ends included (1 when low = high); "
@@ -179,9 +180,55 @@ def sweep_section() -> list[str]:
     return lines
 
 
+#: each field file key, in words (boundary.FIELD_KEYS: a key without words here fails the page)
+FIELD_KEYS = {
+    "name": "the field's name (default: the file's stem; GeoJSON: the Feature's `name` property)",
+    "boundary": "the outline: a ring of [x, y] points in m (GeoJSON: the Polygon's exterior ring of [lon, lat] "
+                "in degrees, WGS84), counterclockwise, at least 3 distinct points, not crossing itself",
+    "holes": "the obstacles: rings inside the boundary, clockwise, neither crossing nor touching each other "
+             "(GeoJSON: the Polygon's interior rings)",
+    "headlands": "headland rings along the boundary and round each obstacle",
+    "entry": "where the unit enters: [x, y] m (GeoJSON: [lon, lat]), near the field",
+}
+
+
+def field_section() -> list[str]:
+    """The field file, by hand from field/boundary.py (its rules are code), and the field scene
+    from its declarations (field/scene.py)."""
+    from ..field import boundary, scene
+
+    missing = [k for k in boundary.FIELD_KEYS if k not in FIELD_KEYS]
+    if missing:
+        raise SystemExit(f"formats: field file keys {missing} are not described in {__name__}")
+    lines = ["", "## Field file", "",
+             "`config/fields/*`: a field's boundary and obstacles, read by `mta_sim_ros/field/boundary.py` "
+             "(`mta field plan|run`, a field scene). Two forms: GeoJSON (RFC 7946: WGS84 longitude, latitude in "
+             "degrees; a Polygon, or a Feature or a FeatureCollection of one Feature holding one; its properties "
+             "give name, headlands and entry), projected with pyproj to the UTM zone of the field's centre and "
+             "shifted so that the south-west corner of its bounding box is the origin (x east, y north, m); or "
+             "YAML in a local metric frame already, e.g. [config/fields/rectangle.yaml]"
+             "(../config/fields/rectangle.yaml).", "",
+             "| key | meaning | rule |", "|---|---|---|"]
+    rules = {"headlands": f"a whole number in [0, {boundary.MAX_HEADLANDS}], default 1",
+             "boundary": f"|x|, |y| <= {boundary.MAX_LOCAL:g} m (GeoJSON: |lon| <= 180, |lat| <= "
+                         f"{boundary.MAX_LATITUDE:g} deg); at most {boundary.MAX_EXTENT:g} m across; at least "
+                         f"{boundary.MIN_AREA:g} m^2 with the obstacles taken out; at most {boundary.MAX_VERTICES} "
+                         "vertices in all rings",
+             "entry": "within the field's width of its boundary", "holes": "inside the boundary",
+             "name": "1 to 100 printable characters"}
+    lines += [f"| `{k}` | {_cell(FIELD_KEYS[k])} | {_cell(rules.get(k, ''))} |" for k in boundary.FIELD_KEYS]
+    lines += ["", f"A file is at most {boundary.MAX_FILE_BYTES} bytes; JSON's NaN and Infinity are refused.",
+              "", "## Field scene file", "", "`config/fieldwork/*.yaml`: a field and how it is worked, e.g. "
+              "[config/fieldwork/irregular.yaml](../config/fieldwork/irregular.yaml) (`mta field run`, a sweep's "
+              "scenes)."]
+    for s in (scene.FIELD_SCENE, scene.PLAN, scene.DRIVE):
+        lines += schema_section(s)
+    return lines
+
+
 def markdown() -> str:
     """The whole of docs/formats.md."""
-    lines = ["# File formats: train, scene and sweep spec", "",
+    lines = ["# File formats: train, scene, field, field scene and sweep spec", "",
              f"<!-- Generated: `{COMMAND}`. Do not edit; test/test_docs.py holds this page to the generator. -->",
              "",
              "Every field of the files the simulator reads, with its unit, rule and default. The train and scene "
@@ -200,6 +247,7 @@ def markdown() -> str:
         if s is schema.MANEUVER_PARAMS:
             lines += ["", "### Named manoeuvres", "", "`steering: {maneuver: NAME, params: {...}}`; from "
                       "`mta_sim_ros/physics/maneuvers.py`. Positive steering turns left.", "", *maneuver_rows()]
+    lines += field_section()
     lines += sweep_section()
     return "\n".join(lines) + "\n"
 

@@ -38,9 +38,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     engine.add_argument("--scheduler-file", help="the scheduler file of a running Dask cluster")
     engine.add_argument("--serial", action="store_true", help="run in this process, no Dask")
     p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.add_argument("--x", default="energy_per_ha_kWh", help="report: the Pareto front's first metric (minimized; "
-                                                            "the margin, area and distance maximized)")
-    p.add_argument("--y", default="headland_width_m", help="report: its second metric (likewise)")
+    p.add_argument("--x", help="report: the Pareto front's first metric (minimized; the margin, areas, coverage, "
+                               "efficiency and distance maximized); default per scene: a field's time, fuel and "
+                               "skipped area, a manoeuvre's energy per ha and headland width (those that vary)")
+    p.add_argument("--y", help="report: its second metric (likewise)")
     p.add_argument("--scene", help="report: one scene (default: each)")
     p.add_argument("--best", type=number_arg(COUNT, int), default=10, help="report: schemes in the best table")
     p.add_argument("--spec", help="export: the sweep's spec, if it is no longer where the sweep read it "
