@@ -119,3 +119,21 @@ def test_no_output_overwrites_an_input(capsys, tmp_path):
     before = field.read_bytes()
     refused(capsys, ("--out", "is not the input"), "run", field, "--out", tmp_path)
     assert field.read_bytes() == before
+
+
+def test_a_foreign_plan_of_x_y_is_driven_and_its_straights_worked(field_file, tmp_path, capsys):
+    """A plan as Fields2Cover or opennav_coverage exports it, a CSV of x, y only: two passes 30 m
+    apart joined by a half circle. Its straights are taken as swaths (route_io: straight runs of 10 m
+    and more) and worked; the worked ground is about the two strips, each 12 m wide along its
+    straight: 2 x 12 m x 160 m (the implement lowered from the first straight's start, lifted on
+    the half circle; what it works inside the field)."""
+    t = np.linspace(0.0, np.pi, 60)
+    xs = np.r_[np.linspace(40.0, 200.0, 321), 200.0 + 15.0 * np.sin(t[1:-1]), np.linspace(200.0, 40.0, 321)]
+    ys = np.r_[np.full(321, 45.0), 60.0 - 15.0 * np.cos(t[1:-1]), np.full(321, 75.0)]
+    plan = tmp_path / "foreign.csv"
+    plan.write_text("x,y\n" + "\n".join(f"{x:.4f},{y:.4f}" for x, y in zip(xs, ys)) + "\n")
+    code, out, err = mta(capsys, "run", field_file, "--plan", plan, "--out", tmp_path / "run")
+    assert code == 0, err
+    figures = json.loads((tmp_path / "run" / "metrics.json").read_text())["figures"]
+    assert figures["worked_area_ha"] == pytest.approx(2 * 12.0 * 160.0 / 1e4, rel=0.03)
+    assert figures["double_worked_ha"] == pytest.approx(0.0, abs=1e-3)
