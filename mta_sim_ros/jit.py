@@ -39,6 +39,7 @@ UNIT = (
     "physics/kernel/laws.py",
     "physics/kernel/motion.py",
     "physics/kernel/entries.py",
+    "physics/kernel/inverse.py",
     "integrate/rk.py",
     "run/whole.py",
     "run/offsets.py",

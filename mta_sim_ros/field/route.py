@@ -1,8 +1,8 @@
 """The route as arrays (types.Route): stretches of constant curvature and polylines, sampled.
 
 A plan is built as a chain of stretches, each one Segment of the route: a swath, a headland ring,
-a turn or a transit. A stretch is either a list of ``Move`` s from a pose (straights and arcs:
-headings and curvatures exact) or a polyline (a headland ring as shapely drew it). Sampling puts
+a turn or a transit. A stretch is either a list of ``Move`` s from a pose (straights, arcs and
+clothoids: headings and curvatures exact, a clothoid's points integrated to ~1e-12 m) or a polyline (a headland ring as shapely drew it). Sampling puts
 vertices at most ``spacing`` apart; the vertex where two stretches meet belongs to the later one
 (a vertex's flags hold from it to the next).
 
@@ -40,11 +40,22 @@ class Pose:
 @dataclass(frozen=True)
 class Move:
     """Driving ``length`` m along a path of ``curvature`` (1/m, of the direction of motion, > 0
-    left), forwards or backwards."""
+    left) at its start, forwards or backwards; ``sharpness`` (1/m^2) is the curvature's rate along
+    the path: 0 a straight or an arc, else a clothoid (curvature + sharpness x s)."""
 
     length: float
     curvature: float = 0.0
     reverse: bool = False
+    sharpness: float = 0.0
+
+    @property
+    def end_curvature(self) -> float:
+        return self.curvature + self.sharpness * self.length
+
+    @property
+    def turn(self) -> float:
+        """rad: the heading's change over the move."""
+        return self.curvature * self.length + 0.5 * self.sharpness * self.length ** 2
 
 
 @dataclass
@@ -76,15 +87,39 @@ def wrap(angle):
 def end_of(pose: Pose, move: Move) -> Pose:
     """The pose after ``move``."""
     xy, heading, _ = sample_move(pose, move, max(move.length, 1.0))
-    return Pose(float(xy[-1, 0]), float(xy[-1, 1]), pose.heading + move.curvature * move.length)
+    return Pose(float(xy[-1, 0]), float(xy[-1, 1]), pose.heading + move.turn)
+
+
+#: Gauss-Legendre nodes and weights on [0, 1] (degree 15 exact): a clothoid's chords integrated
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+_GL_X, _GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
+#: m: the longest piece of a clothoid one Gauss-Legendre rule integrates (its error ~ (h kappa)^16)
+CLOTHOID_PIECE = 0.5
+
+
+def clothoid_points(phi0: float, kappa0: float, sharpness: float, u: np.ndarray) -> np.ndarray:
+    """(len(u), 2): the displacement from the start of a path of heading phi0 + kappa0 s +
+    sharpness s^2 / 2 at the stations ``u`` (increasing, u[0] = 0), integrated piece by piece with
+    Gauss-Legendre's rule (the chords cut to CLOTHOID_PIECE)."""
+    cuts = np.unique(np.concatenate([u, np.arange(0.0, u[-1], CLOTHOID_PIECE)]))
+    h = np.diff(cuts)
+    s = cuts[:-1, None] + h[:, None] * _GL_X[None, :]
+    phi = phi0 + kappa0 * s + 0.5 * sharpness * s * s
+    step = np.column_stack([(np.cos(phi) @ _GL_W) * h, (np.sin(phi) @ _GL_W) * h])
+    run = np.vstack([np.zeros((1, 2)), np.cumsum(step, axis=0)])
+    return run[np.searchsorted(cuts, u)]
 
 
 def sample_move(pose: Pose, move: Move, spacing: float):
-    """(points, motion headings, curvatures) along ``move`` from ``pose``, both ends in."""
+    """(points, motion headings, curvatures) along ``move`` from ``pose``, both ends in: arcs and
+    straights in closed form, clothoids integrated (``clothoid_points``)."""
     n = max(1, math.ceil(move.length / spacing - 1e-9))
     u = np.linspace(0.0, move.length, n + 1)
     phi0 = pose.heading + (math.pi if move.reverse else 0.0)
-    phi = phi0 + move.curvature * u
+    phi = phi0 + move.curvature * u + 0.5 * move.sharpness * u * u
+    if move.sharpness != 0.0:
+        xy = np.array([pose.x, pose.y]) + clothoid_points(phi0, move.curvature, move.sharpness, u)
+        return xy, phi, move.curvature + move.sharpness * u
     if move.curvature == 0.0:
         x = pose.x + u * math.cos(phi0)
         y = pose.y + u * math.sin(phi0)
@@ -110,7 +145,7 @@ def moves_stretch(kind: str, pose: Pose, moves, working: bool = False, index: in
             last.curvature = np.concatenate([last.curvature[:-1], curvature])
         else:
             out.append(Stretch(kind, xy, heading, curvature, working, move.reverse, index))
-        pose = Pose(float(xy[-1, 0]), float(xy[-1, 1]), pose.heading + move.curvature * move.length)
+        pose = Pose(float(xy[-1, 0]), float(xy[-1, 1]), pose.heading + move.turn)
     return out
 
 

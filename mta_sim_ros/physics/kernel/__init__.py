@@ -7,6 +7,7 @@ plain Python: ``jit.py``). One compile unit with ``integrate/rk.py`` (the steppe
     laws.py      steering actuator, resistances, traction limits, switch layout
     motion.py    rhs (chain walk + algorithm 2 + force laws), margin, outputs, drawbar pulls, switches
     entries.py   what Python calls, compiled and cached
+    inverse.py   the kinematic chain inverted: the pose and steering that keep a cart's point on a path
 
 The names below are this package's public face; the tests and the Python model levels use them.
 """
