@@ -1,7 +1,7 @@
 """Transits: getting the working point from one place of the route to the next, raised, on a path
-the train can drive (arcs of its radius R), inside the field.
+the train can drive (CC turns of its radius R and sharpness: clothoid.py), inside the field.
 
-A transit is the shortest Dubins path between the two poses when it stays inside the field
+A transit is the shortest CC Dubins path (CSC; a plain Dubins path of arcs where none joins) between the two poses when it stays inside the field
 (obstacles excluded); otherwise it goes along the headland: a Dubins path onto the innermost
 headland pass that goes round (the boundary's or an obstacle's), along that pass the shorter way,
 and a Dubins path off it. Where neither stays inside, the shortest is taken and the plan says so.
@@ -18,6 +18,7 @@ from shapely import geometry as sg
 from shapely import ops
 
 from .route import Pose, moves_stretch, polyline_stretch
+from .clothoid import Curves, cc_dubins_paths
 from .turns import dubins_paths
 
 #: how far ahead (in radii) and aside the points a path onto a ring aims at are tried
@@ -81,13 +82,14 @@ def shortest(candidates, region) -> Connection:
     return Connection(ranked[0], False)
 
 
-def dubins_stretches(kind: str, start: Pose, goal: Pose, radius: float, region, spacing: float) -> list:
-    """Stretches of the shortest Dubins path from ``start`` to ``goal`` inside ``region`` (else the
-    shortest), [] when start and goal coincide."""
+def dubins_stretches(kind: str, start: Pose, goal: Pose, curves: Curves, region, spacing: float) -> list:
+    """Stretches of the shortest CC Dubins path from ``start`` to ``goal`` inside ``region`` (else
+    the shortest; a plain Dubins path where no CC path joins them), [] when they coincide."""
     if math.hypot(goal.x - start.x, goal.y - start.y) < 1e-9 and \
             abs(math.remainder(goal.heading - start.heading, 2 * math.pi)) < 1e-9:
         return []
-    options = [moves_stretch(kind, start, moves, spacing=spacing) for moves in dubins_paths(start, goal, radius)]
+    paths = cc_dubins_paths(start, goal, curves) or dubins_paths(start, goal, curves.radius)
+    options = [moves_stretch(kind, start, moves, spacing=spacing) for moves in paths]
     if not options:
         return []
     for option in options:
@@ -96,33 +98,33 @@ def dubins_stretches(kind: str, start: Pose, goal: Pose, radius: float, region, 
     return options[0]
 
 
-def onto_loop(here: Pose, loop: sg.LineString, radius: float, region, spacing: float):
+def onto_loop(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
     """[(stretches, t, forward)]: Dubins paths from ``here`` onto ``loop`` at points ahead and
     aside, in both directions of the loop."""
     u = np.array([math.cos(here.heading), math.sin(here.heading)])
     left = np.array([-u[1], u[0]])
     out = []
     for k, j in AIMS:
-        aim = here.xy + radius * (k * u + j * left)
+        aim = here.xy + curves.radius * (k * u + j * left)
         t = loop.project(sg.Point(aim))
         for forward in (True, False):
             goal = loop_pose(loop, t, forward)
-            out.append((dubins_stretches("transit", here, goal, radius, region, spacing), t, forward))
+            out.append((dubins_stretches("transit", here, goal, curves, region, spacing), t, forward))
     return out
 
 
-def off_loop(goal: Pose, loop: sg.LineString, radius: float, region, spacing: float):
+def off_loop(goal: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
     """[(stretches, t, forward)]: Dubins paths from ``loop`` (at points behind and aside the goal)
     onto ``goal``."""
     u = np.array([math.cos(goal.heading), math.sin(goal.heading)])
     left = np.array([-u[1], u[0]])
     out = []
     for k, j in AIMS:
-        aim = goal.xy - radius * (k * u + j * left)
+        aim = goal.xy - curves.radius * (k * u + j * left)
         t = loop.project(sg.Point(aim))
         for forward in (True, False):
             start = loop_pose(loop, t, forward)
-            out.append((dubins_stretches("transit", start, goal, radius, region, spacing), t, forward))
+            out.append((dubins_stretches("transit", start, goal, curves, region, spacing), t, forward))
     return out
 
 
@@ -131,15 +133,15 @@ def along(loop: sg.LineString, t0: float, t1: float, forward: bool) -> float:
     return ((t1 - t0) if forward else (t0 - t1)) % loop.length
 
 
-def transit(here: Pose, goal: Pose, radius: float, region, loops, spacing: float) -> Connection:
+def transit(here: Pose, goal: Pose, curves: Curves, region, loops, spacing: float) -> Connection:
     """From ``here`` to ``goal`` (module docstring)."""
-    direct = dubins_stretches("transit", here, goal, radius, region, spacing)
+    direct = dubins_stretches("transit", here, goal, curves, region, spacing)
     if not direct or inside(region, direct):
         return Connection(direct, True)
     candidates = [direct]
     for loop in loops:
-        ons = [o for o in onto_loop(here, loop, radius, region, spacing) if inside(region, o[0])]
-        offs = [o for o in off_loop(goal, loop, radius, region, spacing) if inside(region, o[0])]
+        ons = [o for o in onto_loop(here, loop, curves, region, spacing) if inside(region, o[0])]
+        offs = [o for o in off_loop(goal, loop, curves, region, spacing) if inside(region, o[0])]
         pairs = [(sum(st.length for st in on + off) + along(loop, t0, t1, fwd), on, off, t0, t1, fwd)
                  for on, t0, fwd in ons for off, t1, fwd1 in offs if fwd == fwd1]
         if not pairs:
@@ -150,10 +152,10 @@ def transit(here: Pose, goal: Pose, radius: float, region, loops, spacing: float
     return shortest(candidates, region)
 
 
-def onto_ring(here: Pose, loop: sg.LineString, radius: float, region, spacing: float):
+def onto_ring(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
     """(approach stretches, the ring driven from where they meet it, inside?): the shortest way
     onto ``loop`` that stays inside, the loop then driven once round."""
-    options = onto_loop(here, loop, radius, region, spacing)
+    options = onto_loop(here, loop, curves, region, spacing)
     ranked = sorted(options, key=lambda o: sum(st.length for st in o[0]))
     for stretches, t, forward in ranked:
         if inside(region, stretches):

@@ -6,12 +6,23 @@ along the swaths' direction, the piece of the same rank in that row; otherwise (
 bay begins or ends) the open cells close and each piece starts a new one. A cell is then one
 swath a row, side by side, so the turns inside it join neighbours.
 
-**Orders** inside a cell (Fields2Cover's names): ``boustrophedon`` drives the swaths side by side;
-``skip`` (Fields2Cover's snake order) drives every other one out, 0, 2, 4, ..., and the rest back,
-..., 5, 3, 1: the turns span two spacings, but one (where it comes back) spans one. ``auto``
-takes, over the whole field, the order with the fewest turns too tight for a U (spacing < 2R),
-boustrophedon on a tie: a field where boustrophedon's turns are all U's gets boustrophedon.
-Consecutive swaths are driven in opposite directions.
+**Orders** inside a cell: consecutive swaths are driven in opposite directions, each turn joining
+two swaths some spacings apart; a U-turn needs at least ``min_u`` (turns.py), so an order whose
+every turn spans m spacings or more, m spacings >= min_u, needs no tighter turn.
+
+- ``boustrophedon`` (m = 1): the swaths side by side.
+- ``skip`` (skip one, m = 2): Fields2Cover's snake, out on every other swath and back on the rest,
+  with its turnaround made wide: out 0, 2, ..., a - 2 (a = count - 4), then a + 2, a, a + 3, a + 1,
+  then back a - 1, ..., 1 (odd counts alike): every turn spans 2 spacings but two of 3 and one of 4.
+- ``skipK`` (skip K, m = K + 1 >= 3): blocks of 2m swaths, the last one taking what is left
+  (2m to 4m - 1), each driven interleaved: h, 0, h + 1, 1, ..., 2h - 1, h - 1 for an even block of
+  2h, 0, h, 1, h + 1, ..., 2h - 2, h - 1 for an odd one of 2h - 1: every turn spans h - 1 to h + 1
+  spacings (>= m), a block's first swath is h + h' + 1 or more from the last one's end.
+A cell of fewer than 2m swaths has no such order (its middle swath is closer than m to all the
+rest): it is driven out and back by lanes (r, r + m, ..., then the next lane back), and the turns
+that join closer swaths are tight. ``auto`` takes, over the whole field, the order with the fewest
+turns tighter than min_u, the smaller m on a tie: a field whose boustrophedon turns are all U's
+gets boustrophedon.
 
 **Cells in turn**: from the entry, the nearest start of a cell not yet worked next (a cell can be
 driven from its first or its last row, and the first swath either way), the cells joined by
@@ -26,7 +37,8 @@ import numpy as np
 
 from .swaths import Swath
 
-ORDERS = ("boustrophedon", "skip")
+#: the orders by the spacings m every turn spans at least: boustrophedon 1, skip 2, skipK K + 1
+ORDERS = ("boustrophedon", "skip", *(f"skip{k}" for k in range(2, 10)))
 
 
 @dataclass(frozen=True)
@@ -68,27 +80,65 @@ def cells(swaths) -> list[list[Swath]]:
     return done
 
 
+def spans(order: str) -> int:
+    """m: the spacings every turn of ``order`` spans at least (a cell of 2m swaths or more)."""
+    if order == "boustrophedon":
+        return 1
+    return 2 if order == "skip" else int(order[4:]) + 1
+
+
 def sequence(order: str, count: int) -> list[int]:
-    """The ranks of a cell's ``count`` swaths in the order driven."""
-    if order == "skip":
-        return list(range(0, count, 2)) + list(range(count - 1 - (count % 2 == 1), 0, -2))
-    return list(range(count))
+    """The ranks of a cell's ``count`` swaths in the order driven (module docstring)."""
+    m = spans(order)
+    if m == 1:
+        return list(range(count))
+    if count < 2 * m:
+        return lanes(count, m)
+    if m == 2:
+        a = count - 4
+        return list(range(0, a, 2)) + [a + 2, a, a + 3, a + 1] + list(range(a - 1 - (a % 2 == 1), 0, -2))
+    out, base = [], 0
+    while base < count:
+        size = count - base if count - base < 4 * m else 2 * m
+        out.extend(base + r for r in interleaved(size))
+        base += size
+    return out
 
 
-def tight_turns(order: str, cell: list[Swath], radius: float) -> int:
-    """Turns of ``order`` in ``cell`` that join swaths closer than 2 ``radius``."""
+def interleaved(size: int) -> list[int]:
+    """A block of ``size`` swaths: h, 0, h + 1, 1, ... (even) or 0, h, 1, h + 1, ... (odd)."""
+    h = (size + 1) // 2
+    if size % 2 == 0:
+        return [r for i in range(h) for r in (h + i, i)]
+    return [r for i in range(h - 1) for r in (i, h + i)] + [h - 1]
+
+
+def lanes(count: int, m: int) -> list[int]:
+    """Lane r = r, r + m, ... driven out, the next lane back, and so on."""
+    out = []
+    for r in range(min(m, count)):
+        lane = list(range(r, count, m))
+        out.extend(lane if r % 2 == 0 else lane[::-1])
+    return out
+
+
+def tight_turns(order: str, cell: list[Swath], min_width: float) -> int:
+    """Turns of ``order`` in ``cell`` that join swaths closer than ``min_width``."""
     ranks = sequence(order, len(cell))
-    return sum(abs(cell[b].offset - cell[a].offset) < 2.0 * radius * (1.0 - 1e-12) for a, b in zip(ranks, ranks[1:]))
+    return sum(abs(cell[b].offset - cell[a].offset) < min_width * (1.0 - 1e-9) for a, b in zip(ranks, ranks[1:]))
 
 
-def choose_order(asked: str, all_cells: list[list[Swath]], radius: float) -> tuple[str, str]:
-    """(the order, why) for ``asked`` (auto or one of ORDERS)."""
+def choose_order(asked: str, all_cells: list[list[Swath]], min_width: float, spacing: float) -> tuple[str, str]:
+    """(the order, why) for ``asked`` (auto or one of ORDERS): auto tries the orders up to the
+    one whose m spacings hold ``min_width``."""
     if asked != "auto":
         return asked, "asked"
-    tight = {order: sum(tight_turns(order, c, radius) for c in all_cells) for order in ORDERS}
-    best = min(ORDERS, key=lambda o: (tight[o], ORDERS.index(o)))
-    counts = ", ".join(f"{o} {tight[o]}" for o in ORDERS)
-    return best, f"auto: fewest turns tighter than a U of the train's radius ({counts})"
+    need = max(1, math.ceil(min_width / spacing * (1.0 - 1e-9)))
+    tried = [o for o in ORDERS if spans(o) <= need] or [ORDERS[-1]]
+    tight = {order: sum(tight_turns(order, c, min_width) for c in all_cells) for order in tried}
+    best = min(tried, key=lambda o: (tight[o], spans(o)))
+    counts = ", ".join(f"{o} {tight[o]}" for o in tried)
+    return best, f"auto: fewest turns narrower than the narrowest U, {min_width:.1f} m ({counts})"
 
 
 def variants(cell: list[Swath], order: str) -> list[list[Pass]]:

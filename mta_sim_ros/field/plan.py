@@ -25,7 +25,7 @@ from .headlands import Headlands, headlands
 from .order import cells, choose_order, route_cells, swath_heading
 from .route import SPACING, Move, Pose, assemble, moves_stretch, polyline_stretch, stretch_pose
 from .swaths import Swaths, best_angle, swaths_at
-from .turning import Reach, Turning, turn_reach, turning
+from .turning import Reach, Shapes, Turning, turn_reach, turning
 from .turns import reach, turn_kind, turn_moves, turn_offset
 from .types import ROUTES, TURNS, Plan, PlanOptions
 
@@ -47,14 +47,16 @@ class Layout:
 class Drive:
     """The route being built: its stretches and what was found on the way."""
 
-    def __init__(self, polygon, radius: float, loops, spacing: float):
+    def __init__(self, polygon, shapes: Shapes, loops, spacing: float, measured: Reach):
         self.region = region_of(polygon)
-        self.radius, self.loops, self.spacing = radius, loops, spacing
+        self.shapes, self.curves = shapes, shapes.turn.curves
+        self.loops, self.spacing, self.measured = loops, spacing, measured
         self.stretches: list = []
         self.swaths: list = []
         self.kinds: Counter = Counter()
         self.outside: Counter = Counter()
-        self.extra = 0.0  # m: the farthest a turn's working point goes past a U's
+        self.reach = measured.train  # m: the farthest the train's outline gets beyond a swath's end
+        self.unfollowable = 0  # U-turns whose feedforward leaves the limits
 
     @property
     def pose(self) -> Pose:
@@ -73,18 +75,24 @@ class Drive:
     def turn(self, goal: Pose, asked: str) -> None:
         end = self.pose
         offset = turn_offset(end, goal)
-        kind = turn_kind(asked, offset, self.radius)
-        stretches = moves_stretch("turn", end, turn_moves(kind, end, goal, self.radius), spacing=self.spacing)
+        kind = turn_kind(asked, offset, self.curves)
+        middle = None
+        if kind == "u":  # its shape chosen on the inverted chain, and its reach measured there
+            middle, outline, ok = self.shapes.u(offset)
+            self.unfollowable += not ok
+        else:  # the train's reach in a U, plus how much farther this turn takes the working point
+            outline = self.measured.train + reach(kind, round(offset, 9), self.curves) - self.measured.point
+        self.reach = max(self.reach, outline)
+        stretches = moves_stretch("turn", end, turn_moves(kind, end, goal, self.curves, middle), spacing=self.spacing)
         self.kinds[kind] += 1
-        self.extra = max(self.extra, reach(kind, offset, self.radius) - self.radius)
         self.add(stretches, "turn", inside(self.region, stretches))
 
     def transit(self, goal: Pose) -> None:
-        found: Connection = transit(self.pose, goal, self.radius, self.region, self.loops, self.spacing)
+        found: Connection = transit(self.pose, goal, self.curves, self.region, self.loops, self.spacing)
         self.add(found.stretches, "transit", found.inside)
 
     def ring(self, loop, index: int) -> None:
-        approach, line, ok = onto_ring(self.pose, loop, self.radius, self.region, self.spacing)
+        approach, line, ok = onto_ring(self.pose, loop, self.curves, self.region, self.spacing)
         self.add(approach, "transit", ok)
         self.add([polyline_stretch("headland", line, True, index, self.spacing)], "headland")
 
@@ -133,16 +141,16 @@ def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int) -> La
     if found.dropped:
         notes.append(f"{found.dropped} pieces of swath shorter than the width dropped "
                      f"({found.dropped_length:.1f} m, ~{found.dropped_length * width:.0f} m^2)")
-    order, why = choose_order(options.route, cells(found.swaths), turn.radius)
+    order, why = choose_order(options.route, cells(found.swaths), turn.min_u, width * (1.0 - options.overlap))
     notes.append(f"route {order} ({why})")
     return Layout(rings, band, found, order, notes)
 
 
-def drive(field: Field, layout: Layout, turn: Turning, options: PlanOptions) -> Drive:
+def drive(field: Field, layout: Layout, train, turn: Turning, options: PlanOptions, measured: Reach) -> Drive:
     """The route's stretches: the cells' swaths joined by turns and transits, then the rings."""
     band = layout.headlands
     innermost = [line for line, i in zip(band.rings, band.ring_index) if i == layout.rings - 1]
-    run = Drive(field.polygon, turn.radius, innermost, SPACING)
+    run = Drive(field.polygon, Shapes(train, turn), innermost, SPACING, measured)
     entry = field.entry if field.entry is not None else field.polygon.exterior.coords[0]
     angle = layout.swaths.angle
     for c, passes in enumerate(route_cells(cells(layout.swaths.swaths), layout.order, entry)):
@@ -187,7 +195,7 @@ def rings_for(reach_m: float, width: float) -> int:
 def plan_field(field: Field, train, options: PlanOptions) -> Plan:
     """The coverage plan of ``field`` for ``train`` with ``options`` (module docstring)."""
     check_options(options, field)
-    turn = turning(train)
+    turn = turning(train, options.width * (1.0 - options.overlap))
     measured = turn_reach(train, turn)
     asked = options.headlands if options.headlands is not None else field.headlands
     own = options.headlands is None
@@ -202,8 +210,8 @@ def plan_field(field: Field, train, options: PlanOptions) -> Plan:
             rings = asked  # the field is too small for the band the turns want: the notes say so
             own = False
             continue
-        run = drive(field, layout, turn, options)
-        needed = rings_for(measured.train + run.extra, options.width)
+        run = drive(field, layout, train, turn, options, measured)
+        needed = rings_for(run.reach, options.width)
         if not (own and rings < needed <= MAX_HEADLANDS):
             break
         rings = needed
@@ -219,22 +227,25 @@ def plan_field(field: Field, train, options: PlanOptions) -> Plan:
 def plan_notes(field, options, turn: Turning, measured: Reach, layout: Layout, run: Drive, asked: int) -> list:
     """The choices the plan made and what it found, in words."""
     width, band = options.width, layout.headlands.width
-    notes = [f"turn radius {turn.radius:.2f} m (the implement's working point on the steady circle at steering "
-             f"{math.degrees(turn.steering):.1f} deg, limited by {turn.bound}; tractor axle "
-             f"{turn.tractor_radius:.2f} m)",
-             f"a simulated U-turn at that steering reaches {measured.train:.1f} m beyond the swath end "
-             f"(the working point {measured.point:.1f} m)"]
+    notes = [f"turns of continuous curvature: radius {turn.radius:.2f} m, clothoids of {turn.clothoid:.1f} m "
+             f"(sharpness {turn.sharpness:.4g} 1/m^2), the narrowest U {turn.min_u:.1f} m wide; their "
+             f"feedforward asks at most {math.degrees(turn.steering):.1f} deg at {turn.rate:.2f} rad/s "
+             f"(limits: {turn.bound})",
+             f"the narrowest U-turn reaches {measured.train:.1f} m beyond the swath end (the train's outline on "
+             f"the inverted chain; the working point {measured.point:.1f} m), the plan's turns {run.reach:.1f} m"]
     if layout.rings != asked:
-        notes.append(f"headland rings {layout.rings} instead of {asked}: the turns need "
-                     f"{measured.train + run.extra:.1f} m")
-    reach_needed = measured.train + run.extra
+        notes.append(f"headland rings {layout.rings} instead of {asked}: the turns need {run.reach:.1f} m")
+    reach_needed = run.reach
     if reach_needed > band + 1e-9:
         notes.append(f"turns reach {reach_needed:.1f} m into a {band:.1f} m headland: the train leaves the field "
                      f"by up to {reach_needed - band:.1f} m")
     notes.extend(layout.notes)
     kinds = ", ".join(f"{n} {k}" for k, n in sorted(run.kinds.items()))
-    notes.append(f"turns: {kinds or 'none'}" + (" (a U tighter than the train's radius where the spacing is less "
-                                                "than 2R: the train cannot follow it)" if run.kinds["tight u"] else ""))
+    notes.append(f"turns: {kinds or 'none'}" + (" (a U narrower than the narrowest the train follows: it cannot "
+                                                "follow it)" if run.kinds["tight u"] else ""))
+    if run.unfollowable:
+        notes.append(f"{run.unfollowable} U-turns ask more of the steering than the limits (the least asking "
+                     "shape taken)")
     for kind, n in sorted(run.outside.items()):
         notes.append(f"{n} {kind} paths of the working point leave the field")
     tight = ring_bends(field.polygon, layout.headlands, width, turn.radius)

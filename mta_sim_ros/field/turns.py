@@ -1,102 +1,86 @@
 """Headland turns between the ends of two antiparallel swaths, and Dubins paths for transits: the
-working point's path as moves (arcs of the train's own radius R and straights), no ROS.
+working point's path as moves, no ROS. The turns are continuous-curvature (clothoid.py: CC turns
+of the train's radius R and sharpness sigma, which turning.py chose so the train can follow them).
 
 A turn starts where a swath ends (pose ``end``, heading u) and finishes where the next one starts,
 ``offset`` D across (to the left or the right) and ``along`` ahead of the end (negative: behind).
 The turn's far side lies at max(0, along) ahead: the swath that ends nearer the field's edge is
 extended straight into the headland (raised) so that both meet it.
 
-- **U** (D >= 2R): a quarter circle, a straight of D - 2R across, a quarter circle; it reaches R
-  beyond the far side.
-- **bulb** (D < 2R; the "light bulb" or omega turn): a circle away from the next swath by alpha,
-  one towards it by pi + 2 alpha, and one away by alpha, each of radius R and tangent to the next;
-  the middle circle's centre is X = sqrt(4R^2 - (D/2 + R)^2) beyond the far side, so it reaches
-  X + R.
-- **fishtail** (D < 2R): a quarter circle forwards, a straight of 2R - D driven backwards, a
-  quarter circle forwards (the reversing controller drives the middle); it reaches R, as a U.
-Where D >= 2R every kind is a U (a bulb's circles no longer touch, a fishtail's backward straight
-would be forwards).
+- **U** (D >= min_u, the width of a CC half turn at R): a CC half turn widened to D (R' >= R),
+  or two CC quarter turns with a straight between where D >= 2 T (clothoid.py).
+- **bulb** (D < min_u; the "light bulb" or omega turn): CC turns away by alpha, towards the next
+  swath by pi + 2 alpha and away by alpha, alpha solved for D.
+- **fishtail** (D < min_u): a CC quarter turn forwards, a straight of 2 T - D driven backwards, a
+  CC quarter turn forwards (the reversing controller drives the middle).
+- **tight u** (``turn: u`` where D < min_u): the narrowest U scaled down to D (R and the
+  clothoids by D / min_u, sigma by its square): tighter than the train follows, which the plan says.
+Where D >= min_u every kind is a U. With sigma = inf the turns are the arcs of R joined with
+curvature jumps (the plain Dubins turns).
 
-Dubins paths (the shortest forward path of bounded curvature between two poses: three moves,
-circle-straight-circle or three circles) join what no turn does: cells, headland rings.
+How far each reaches beyond the far side is measured on its sampled path (``reach``). Dubins paths
+(the shortest forward path of bounded curvature between two poses: three moves,
+circle-straight-circle or three circles) are kept for a transit no CC path joins.
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Optional
 
 import numpy as np
 
-from .route import Move, Pose, end_of
+from .clothoid import Curves, bulb_moves, fishtail_moves, min_u, u_moves
+from .route import Move, Pose, end_of, sample_move
 
 KINDS = ("u", "bulb", "fishtail")
 
 
-def u_moves(offset: float, radius: float) -> list[Move]:
-    """A U-turn to a swath ``offset`` (> 0 left, < 0 right, |offset| >= 2 radius) across."""
-    side = math.copysign(1.0, offset)
-    k = side / radius
-    return [Move(0.5 * math.pi * radius, k), Move(abs(offset) - 2.0 * radius), Move(0.5 * math.pi * radius, k)]
+def tight_u_moves(offset: float, curves: Curves) -> list[Move]:
+    """The narrowest U scaled down to ``|offset|`` (< min_u) across."""
+    f = abs(offset) / min_u(curves)
+    return u_moves(offset, Curves(curves.radius * f, curves.sharpness / (f * f)))
 
 
-def bulb_geometry(offset: float, radius: float) -> tuple[float, float]:
-    """(alpha, X) of a bulb turn to a swath ``|offset|`` < 2 radius across (module docstring)."""
-    d = abs(offset)
-    x = math.sqrt(max(4.0 * radius**2 - (0.5 * d + radius) ** 2, 0.0))
-    alpha = 0.5 * math.pi - math.atan2(0.5 * d + radius, x)
-    return alpha, x
-
-
-def bulb_moves(offset: float, radius: float) -> list[Move]:
-    """A bulb turn to a swath ``offset`` across (|offset| < 2 radius)."""
-    side = math.copysign(1.0, offset)
-    alpha, _ = bulb_geometry(offset, radius)
-    k = side / radius
-    return [Move(alpha * radius, -k), Move((math.pi + 2.0 * alpha) * radius, k), Move(alpha * radius, -k)]
-
-
-def fishtail_moves(offset: float, radius: float) -> list[Move]:
-    """A fishtail turn to a swath ``offset`` across (|offset| < 2 radius): forwards, backwards, forwards."""
-    side = math.copysign(1.0, offset)
-    k = side / radius
-    return [Move(0.5 * math.pi * radius, k), Move(2.0 * radius - abs(offset), 0.0, reverse=True),
-            Move(0.5 * math.pi * radius, k)]
-
-
-def turn_kind(asked: str, offset: float, radius: float) -> str:
+def turn_kind(asked: str, offset: float, curves: Curves) -> str:
     """The kind of turn made for ``asked`` (auto, u, bulb, fishtail) at this offset: a U where the
-    offset is at least 2R, else the one asked (auto: bulb; u: a U of the offset's own radius, too
-    tight for the train, which the plan says)."""
-    if abs(offset) >= 2.0 * radius * (1.0 - 1e-12):
+    offset is at least min_u, else the one asked (auto: bulb; u: a tight u, which the plan says)."""
+    if abs(offset) >= min_u(curves) * (1.0 - 1e-9):
         return "u"
     return {"auto": "bulb", "u": "tight u"}.get(asked, asked)
 
 
-def reach(kind: str, offset: float, radius: float) -> float:
-    """How far beyond the turn's far side the working point goes."""
-    if kind == "bulb":
-        return bulb_geometry(offset, radius)[1] + radius
+def kind_moves(kind: str, offset: float, curves: Curves) -> list[Move]:
+    """The moves of a ``kind`` turn ``offset`` across, from its far side back to it."""
+    if kind == "u":
+        return u_moves(offset, curves)
     if kind == "tight u":
-        return 0.5 * abs(offset)
-    return radius
+        return tight_u_moves(offset, curves)
+    if kind == "bulb":
+        return bulb_moves(offset, curves)
+    return fishtail_moves(offset, curves)
 
 
-def turn_moves(kind: str, end: Pose, start: Pose, radius: float) -> list[Move]:
-    """The moves of a ``kind`` turn from ``end`` (heading u) to ``start`` (heading -u)."""
+@functools.lru_cache(maxsize=1024)
+def reach(kind: str, offset: float, curves: Curves) -> float:
+    """How far beyond the turn's far side the working point goes (its sampled path's farthest)."""
+    pose, far = Pose(0.0, 0.0, 0.0), 0.0
+    for move in kind_moves(kind, offset, curves):
+        xy, _, _ = sample_move(pose, move, 0.1)
+        far = max(far, float(xy[:, 0].max()))
+        pose = end_of(pose, move)
+    return far
+
+
+def turn_moves(kind: str, end: Pose, start: Pose, curves: Curves, middle=None) -> list[Move]:
+    """The moves of a ``kind`` turn from ``end`` (heading u) to ``start`` (heading -u); ``middle``:
+    the turn's own moves where they are chosen elsewhere (turning.Shapes)."""
     u = np.array([math.cos(end.heading), math.sin(end.heading)])
     left = np.array([-u[1], u[0]])
     delta = start.xy - end.xy
     along, offset = float(delta @ u), float(delta @ left)
     far = max(0.0, along)
-    if kind == "u":
-        middle = u_moves(offset, radius)
-    elif kind == "tight u":
-        middle = u_moves(offset, 0.5 * abs(offset))
-    elif kind == "bulb":
-        middle = bulb_moves(offset, radius)
-    else:
-        middle = fishtail_moves(offset, radius)
-    return [Move(far), *middle, Move(far - along)]
+    return [Move(far), *(kind_moves(kind, offset, curves) if middle is None else middle), Move(far - along)]
 
 
 def turn_offset(end: Pose, start: Pose) -> float:

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ...jit import jitable
+from ...jit import entry, jitable
 from .base import CART_SIZE, HEAD_SIZE, C, H, wrap_angle
 
 
@@ -112,3 +112,11 @@ def inverse_chain(P, x, y, heading, reverse, end, cart, offset, ref):
         b = int(end[a])
         inverse_stretch(P, x, y, heading, reverse, a, b, cart, offset, th, px, py, ref)
         a = b
+
+
+@entry
+def inverse_of(P, x, y, heading, reverse, end, cart, offset):
+    """``inverse_chain``'s (m x (n + 1)) array, compiled (the field planner's checks of a turn)."""
+    ref = np.empty((x.shape[0], int(P[H.n]) + 1))
+    inverse_chain(P, x, y, heading, reverse, end, cart, offset, ref)
+    return ref
