@@ -40,12 +40,11 @@ rate limit sooner.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...field.turning import implement_of, margin_at
+from ...field.turning import GUARD_MARGIN, TURN_SPEED, guarded_steering, implement_of
 from ...symbolic.linear import heading_row, linearize, point_row
 from ...validate import fail, show
 
@@ -55,7 +54,7 @@ class Settings:
     """How a field is driven: speeds, the controller's weights and lead, the guards, the steps."""
 
     work_speed: float | None = None  # m/s on working stretches; None: the traction law's set speed
-    turn_speed: float = 2.0  # m/s in turns and transits (7.2 km/h)
+    turn_speed: float = TURN_SPEED  # m/s in turns and transits (7.2 km/h: the speed the plan's turns are sized for)
     reverse_speed: float = 1.0  # m/s backwards (its size)
     lead: float | None = None  # s of travel ahead of W the feedforward is read; None: tau + tick / 2
     q_offset: float = 1.0  # 1/m^2: W's lateral offset
@@ -63,7 +62,7 @@ class Settings:
     q_hitch: float = 0.1  # 1/rad^2: each hitch angle
     r: float = 1.0  # 1/rad^2: the steering command
     max_error: float = 1.0  # m of W's lateral error the gain sees at most
-    hitch_margin: float = math.radians(10.0)  # rad: forward, the steering held at most to the steady circle this
+    hitch_margin: float = GUARD_MARGIN  # rad (10 deg): forward, the steering held at most to the steady circle this
     #                               far from every jackknife limit
     off_route: float = 30.0  # m: W farther than this from the route stops the run (a turn the train
     #                          cannot follow takes W some metres off; past this the run is lost)
@@ -148,17 +147,3 @@ def controller(train, settings: Settings = Settings()) -> Controller:
     gains = tuple(design(train, v, settings) for v in speeds)
     return Controller(settings, speeds, gains, point_row(train, m, d), settings.lead_time(train),
                       guarded_steering(train, settings.hitch_margin), working_point_reach(train), m, d, width)
-
-
-def guarded_steering(train, margin: float) -> float:
-    """The largest steering (<= max_angle) whose steady circle keeps every hitch ``margin`` from
-    its jackknife limits (turning.margin_at; bisection: the margin falls as the steering grows).
-    Forward, a train held at it settles on that circle: no command beyond it can fold the train."""
-    top = train.actuator.max_angle
-    if margin_at(train, top) >= margin:
-        return top
-    low, high = 0.0, top
-    for _ in range(60):
-        mid = 0.5 * (low + high)
-        low, high = (mid, high) if margin_at(train, mid) >= margin else (low, mid)
-    return low
