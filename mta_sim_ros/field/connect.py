@@ -22,7 +22,9 @@ from .clothoid import Curves, cc_dubins_paths
 from .turns import dubins_paths
 
 #: how far ahead (in radii) and aside the points a path onto a ring aims at are tried
-AIMS = [(k, j) for k in (0.0, 1.0, 2.0, 3.0) for j in (-1.0, 0.0, 1.0)]
+AIMS = [(k, j) for k in (0.0, 1.0, 2.0, 3.0, 4.5, 6.0) for j in (-1.0, 0.0, 1.0)]
+#: m of straight loop either side of where a path joins it
+STRAIGHT = 1.0
 
 
 @dataclass
@@ -82,49 +84,67 @@ def shortest(candidates, region) -> Connection:
     return Connection(ranked[0], False)
 
 
-def dubins_stretches(kind: str, start: Pose, goal: Pose, curves: Curves, region, spacing: float) -> list:
+def dubins_stretches(kind: str, start: Pose, goal: Pose, curves: Curves, region, spacing: float,
+                     plain: bool = False):
     """Stretches of the shortest CC Dubins path from ``start`` to ``goal`` inside ``region`` (else
-    the shortest; a plain Dubins path where no CC path joins them), [] when they coincide."""
+    the shortest), [] when they coincide, None where no CC path joins them (``plain``: then a plain
+    Dubins path of arcs, with its curvature jumps)."""
     if math.hypot(goal.x - start.x, goal.y - start.y) < 1e-9 and \
             abs(math.remainder(goal.heading - start.heading, 2 * math.pi)) < 1e-9:
         return []
-    paths = cc_dubins_paths(start, goal, curves) or dubins_paths(start, goal, curves.radius)
+    paths = cc_dubins_paths(start, goal, curves) or (dubins_paths(start, goal, curves.radius) if plain else [])
     options = [moves_stretch(kind, start, moves, spacing=spacing) for moves in paths]
     if not options:
-        return []
+        return None
     for option in options:
         if inside(region, option):
             return option
     return options[0]
 
 
-def onto_loop(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
-    """[(stretches, t, forward)]: Dubins paths from ``here`` onto ``loop`` at points ahead and
-    aside, in both directions of the loop."""
-    u = np.array([math.cos(here.heading), math.sin(here.heading)])
+def straight_at(loop: sg.LineString, t: float) -> bool:
+    """The loop runs straight STRAIGHT m either side of distance ``t`` (a path joins it there
+    without a jump of curvature)."""
+    a, b = loop_pose(loop, t - STRAIGHT, True), loop_pose(loop, t + STRAIGHT, True)
+    return abs(math.remainder(a.heading - b.heading, 2.0 * math.pi)) < 1e-6
+
+
+def loop_aims(loop: sg.LineString, pose: Pose, curves: Curves, sense: float) -> list[float]:
+    """Distances along ``loop`` where paths from (sense 1) or to (-1) ``pose`` meet it: the
+    projections of points ahead (behind) and aside, where the loop is straight."""
+    u = np.array([math.cos(pose.heading), math.sin(pose.heading)])
     left = np.array([-u[1], u[0]])
-    out = []
+    found = []
     for k, j in AIMS:
-        aim = here.xy + curves.radius * (k * u + j * left)
-        t = loop.project(sg.Point(aim))
+        t = loop.project(sg.Point(pose.xy + sense * curves.radius * (k * u + j * left)))
+        if straight_at(loop, t) and all(abs(t - f) > 1e-6 for f in found):
+            found.append(t)
+    return found
+
+
+def onto_loop(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
+    """[(stretches, t, forward)]: CC Dubins paths from ``here`` onto ``loop`` where it is straight,
+    at points ahead and aside, in both directions of the loop (those that exist)."""
+    out = []
+    for t in loop_aims(loop, here, curves, 1.0):
         for forward in (True, False):
             goal = loop_pose(loop, t, forward)
-            out.append((dubins_stretches("transit", here, goal, curves, region, spacing), t, forward))
+            found = dubins_stretches("transit", here, goal, curves, region, spacing)
+            if found is not None:
+                out.append((found, t, forward))
     return out
 
 
 def off_loop(goal: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
-    """[(stretches, t, forward)]: Dubins paths from ``loop`` (at points behind and aside the goal)
-    onto ``goal``."""
-    u = np.array([math.cos(goal.heading), math.sin(goal.heading)])
-    left = np.array([-u[1], u[0]])
+    """[(stretches, t, forward)]: CC Dubins paths from ``loop`` (where straight, at points behind
+    and aside the goal) onto ``goal``."""
     out = []
-    for k, j in AIMS:
-        aim = goal.xy - curves.radius * (k * u + j * left)
-        t = loop.project(sg.Point(aim))
+    for t in loop_aims(loop, goal, curves, -1.0):
         for forward in (True, False):
             start = loop_pose(loop, t, forward)
-            out.append((dubins_stretches("transit", start, goal, curves, region, spacing), t, forward))
+            found = dubins_stretches("transit", start, goal, curves, region, spacing)
+            if found is not None:
+                out.append((found, t, forward))
     return out
 
 
@@ -136,9 +156,9 @@ def along(loop: sg.LineString, t0: float, t1: float, forward: bool) -> float:
 def transit(here: Pose, goal: Pose, curves: Curves, region, loops, spacing: float) -> Connection:
     """From ``here`` to ``goal`` (module docstring)."""
     direct = dubins_stretches("transit", here, goal, curves, region, spacing)
-    if not direct or inside(region, direct):
+    if direct is not None and (not direct or inside(region, direct)):
         return Connection(direct, True)
-    candidates = [direct]
+    candidates = [direct] if direct is not None else []
     for loop in loops:
         ons = [o for o in onto_loop(here, loop, curves, region, spacing) if inside(region, o[0])]
         offs = [o for o in off_loop(goal, loop, curves, region, spacing) if inside(region, o[0])]
@@ -149,13 +169,17 @@ def transit(here: Pose, goal: Pose, curves: Curves, region, loops, spacing: floa
         _, on, off, t0, t1, fwd = min(pairs, key=lambda p: p[0])
         part = loop_part(loop, t0, t1, fwd) if along(loop, t0, t1, fwd) > 1e-6 else None
         candidates.append(on + ([polyline_stretch("transit", part, False, spacing=spacing)] if part else []) + off)
+    if not candidates:
+        candidates = [dubins_stretches("transit", here, goal, curves, region, spacing, plain=True)]
     return shortest(candidates, region)
 
 
 def onto_ring(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
     """(approach stretches, the ring driven from where they meet it, inside?): the shortest way
     onto ``loop`` that stays inside, the loop then driven once round."""
-    options = onto_loop(here, loop, curves, region, spacing)
+    options = onto_loop(here, loop, curves, region, spacing) or [
+        (dubins_stretches("transit", here, loop_pose(loop, t, fwd), curves, region, spacing, plain=True), t, fwd)
+        for t in (loop.project(sg.Point(here.xy)),) for fwd in (True, False)]
     ranked = sorted(options, key=lambda o: sum(st.length for st in o[0]))
     for stretches, t, forward in ranked:
         if inside(region, stretches):

@@ -2,9 +2,14 @@
 leave inside (the swaths' ``inner``). Shapely's buffers do all the offsetting.
 
 Ring i (0 outermost) is the centre line of a pass at (i + 1/2) x width inside the field: the
-boundary of ``polygon.buffer(-(offset + R)).buffer(R)`` (an opening by R: its convex corners are
-rounded to the turn radius R, so the train can drive them; its concave corners, and every bend
-round an obstacle, keep the offset as their radius). The band of ``rings`` passes is H = rings x
+boundary of the field moved that far in with sharp (mitred) corners and opened by R (what is
+narrower than 2 R taken off), each convex corner then a CC turn (clothoid.py: clothoid, arc of
+R, clothoid, of the ring's ``curves``, which turning.ring_curves chose so the train follows them at
+the working speed) tangent to its two edges: the straight edges stay on the offset, the corner is
+cut by a little more than an arc of R would. Its concave corners, and every bend round an
+obstacle, are arcs of the offset about the field's corner (a path farther from that corner cannot
+be tangent to both edges). Corners whose fillets would overlap on a short edge are merged into one
+at their edges' crossing (same sense) or the smaller is dropped (opposite senses). The band of ``rings`` passes is H = rings x
 width wide; ``inner``, the ground the swaths work, is what the innermost pass's strip leaves:
 ``polygon.buffer(-(H + r)).buffer(r)`` with r = max(R - width / 2, 0), the inner edge of that strip
 (with no ring, ``inner`` is the field itself).
@@ -18,7 +23,15 @@ import math
 from dataclasses import dataclass
 
 import shapely
+import numpy as np
 from shapely import geometry as sg
+from shapely.geometry.polygon import orient
+
+from .clothoid import Curves, cc_displacement, cc_turn
+from .route import Move, Pose, moves_stretch
+
+#: mitre limit of the sharp offsets (a corner sharper than ~11 deg is bevelled)
+MITRE = 10.0
 
 
 @dataclass(frozen=True)
@@ -59,15 +72,111 @@ def opened(polygon, offset: float, radius: float, spacing: float):
     return polygon.buffer(-(offset + radius), quad_segs=q).buffer(radius, quad_segs=q)
 
 
-def headlands(polygon, rings: int, width: float, radius: float, spacing: float) -> Headlands:
+def headlands(polygon, rings: int, width: float, radius: float, spacing: float,
+              curves: Curves | None = None) -> Headlands:
     """The ``rings`` headland passes of ``width`` in ``polygon`` with corners rounded to ``radius``
-    (module docstring), and the ground inside them."""
+    (CC turns of ``curves`` where given, module docstring), and the ground inside them."""
     lines, index = [], []
     for i in range(rings):
-        for loop in loops(opened(polygon, (i + 0.5) * width, radius, spacing)):
+        offset = (i + 0.5) * width
+        if curves is None:
+            found = loops(opened(polygon, offset, radius, spacing))
+        else:
+            found = [cc_loop(loop, curves, offset, spacing) for loop in loops(mitred(polygon, offset, curves.radius))]
+        for loop in found:
             lines.append(loop)
             index.append(i)
     band = rings * width
     inner = opened(polygon, band, max(radius - width / 2, 0.0), spacing) if rings else polygon
     inner = shapely.make_valid(inner) if not inner.is_valid else inner
     return Headlands(tuple(lines), tuple(index), inner, band)
+
+
+# --------------------------------------------------------------------------- CC rings
+
+
+def mitred(polygon, offset: float, radius: float):
+    """``polygon`` moved ``offset`` inwards with sharp corners, and its parts narrower than 2
+    ``radius`` taken off (an opening by ``radius``, mitred)."""
+    if offset <= 0.0:
+        return polygon
+    core = polygon.buffer(-(offset + radius), join_style="mitre", mitre_limit=MITRE)
+    return orient(shapely.make_valid(core.buffer(radius, join_style="mitre", mitre_limit=MITRE)), 1.0) \
+        if not core.is_empty else core
+
+
+def corner_table(xy: np.ndarray):
+    """(vertices (k, 2), deflections (k,)) of a closed polyline (last point = first), collinear
+    points dropped."""
+    pts = xy[:-1]
+    keep = []
+    for i in range(len(pts)):
+        a, b, c = pts[i - 1], pts[i], pts[(i + 1) % len(pts)]
+        u, v = b - a, c - b
+        turn = math.atan2(u[0] * v[1] - u[1] * v[0], u @ v)
+        if abs(turn) > 1e-6 and np.hypot(*u) > 1e-9:
+            keep.append(i)
+    pts = pts[keep]
+    out = []
+    for i in range(len(pts)):
+        u, v = pts[i] - pts[i - 1], pts[(i + 1) % len(pts)] - pts[i]
+        out.append(math.atan2(u[0] * v[1] - u[1] * v[0], u @ v))
+    return pts, np.array(out)
+
+
+def tangent(turn: float, curves: Curves, concave: float) -> float:
+    """m from a corner of deflection ``turn`` back to where its fillet starts: a CC turn of
+    ``curves`` (turn > 0, convex), an arc of ``concave`` (turn < 0)."""
+    if turn < 0.0:
+        return concave * math.tan(-0.5 * turn)
+    along, left = cc_displacement(turn, curves)
+    return along - left / math.tan(turn) if abs(turn) < math.pi - 1e-9 else math.inf
+
+
+def merged(pts: np.ndarray, turns: np.ndarray, curves: Curves, concave: float):
+    """The corners, neighbours whose fillets overlap on the edge between them merged into one (at
+    their edges' crossing, same sense) or the smaller dropped (opposite senses), until each fits."""
+    pts, turns = list(pts), list(turns)
+    while len(pts) > 3:
+        k = len(pts)
+        tan = [tangent(t, curves, concave) for t in turns]
+        over = [tan[i] + tan[(i + 1) % k] - float(np.hypot(*(pts[(i + 1) % k] - pts[i]))) for i in range(k)]
+        i = int(np.argmax(over))
+        if over[i] <= 1e-9:
+            break
+        j = (i + 1) % k
+        if turns[i] * turns[j] > 0.0 and abs(turns[i] + turns[j]) < math.pi - 1e-6:
+            a, b = pts[i - 1], pts[i]
+            c, d = pts[j], pts[(j + 1) % k]
+            u, v = b - a, d - c
+            t = ((c - a)[0] * v[1] - (c - a)[1] * v[0]) / (u[0] * v[1] - u[1] * v[0])
+            pts[i], turns[i] = a + t * u, turns[i] + turns[j]
+            del pts[j], turns[j]
+        else:
+            drop = i if abs(turns[i]) < abs(turns[j]) else j
+            del pts[drop], turns[drop]
+            pts_arr, turns_arr = corner_table(np.array(pts + [pts[0]]))
+            pts, turns = list(pts_arr), list(turns_arr)
+    return np.array(pts), np.array(turns)
+
+
+def cc_loop(loop: sg.LineString, curves: Curves, concave: float, spacing: float) -> sg.LineString:
+    """The closed ``loop`` (region on its left) with every convex corner a CC turn of ``curves``
+    tangent to its two edges and every concave one an arc of ``concave``, drawn ``spacing`` apart."""
+    pts, turns = merged(*corner_table(np.asarray(loop.coords)[:, :2]), curves, concave)
+    k = len(pts)
+    tan = [tangent(t, curves, concave) for t in turns]
+    out = []
+    for i in range(k):
+        a, b = pts[i], pts[(i + 1) % k]
+        e = (b - a) / np.hypot(*(b - a))
+        start = a + tan[i] * e  # the fillet of corner i ends here; the edge runs to b's fillet
+        heading = math.atan2(e[1], e[0])
+        edge = float(np.hypot(*(b - a))) - tan[i] - tan[(i + 1) % k]
+        moves = [Move(max(edge, 0.0))]
+        t = turns[(i + 1) % k]
+        moves += cc_turn(t, curves) if t > 0.0 else [Move(-t * concave, -1.0 / concave)]
+        for st in moves_stretch("headland", Pose(float(start[0]), float(start[1]), heading), moves, spacing=spacing):
+            out.append(st.xy[:-1])
+    xy = np.vstack(out)
+    return sg.LineString(np.vstack([xy, xy[:1]]))

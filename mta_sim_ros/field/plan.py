@@ -25,7 +25,8 @@ from .headlands import Headlands, headlands
 from .order import cells, choose_order, route_cells, swath_heading
 from .route import SPACING, Move, Pose, assemble, moves_stretch, polyline_stretch, stretch_pose
 from .swaths import Swaths, best_angle, swaths_at
-from .turning import Reach, Shapes, Turning, turn_reach, turning
+from .clothoid import Curves
+from .turning import TURN_SPEED, Reach, Shapes, Turning, ring_curves, turn_reach, turning
 from .turns import reach, turn_kind, turn_moves, turn_offset
 from .types import ROUTES, TURNS, Plan, PlanOptions
 
@@ -121,10 +122,10 @@ def check_options(options: PlanOptions, field: Field) -> None:
              f"(its swaths alone need ~{vertices:.3g})", "field", source, FieldError)
 
 
-def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int) -> Layout:
-    """Headlands, swaths and the order for ``rings`` headland rings."""
+def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int, corners: Curves) -> Layout:
+    """Headlands (their corners CC turns of ``corners``), swaths and the order for ``rings`` rings."""
     width, notes = options.width, []
-    band = headlands(field.polygon, rings, width, turn.radius, SPACING)
+    band = headlands(field.polygon, rings, width, corners.radius, SPACING, corners)
     if band.inner.is_empty or band.inner.area <= 0.0:
         fail("headlands", f"{rings} rings of {width:g} m", "few enough to leave ground inside them", "field",
              field.source, FieldError)
@@ -197,13 +198,15 @@ def plan_field(field: Field, train, options: PlanOptions) -> Plan:
     check_options(options, field)
     turn = turning(train, options.width * (1.0 - options.overlap))
     measured = turn_reach(train, turn)
+    speed = train.traction.set_speed if train.traction.set_speed > 0 else TURN_SPEED
+    corners = ring_curves(train, turn, speed)
     asked = options.headlands if options.headlands is not None else field.headlands
     own = options.headlands is None
     rings = max(asked, rings_for(measured.train, options.width)) if own else asked
     layout, run = None, None
     for _ in range(MAX_RELAYS):
         try:
-            layout = lay_out(field, options, turn, rings)
+            layout = lay_out(field, options, turn, rings, corners)
         except FieldError:
             if rings == asked or layout is not None:
                 raise

@@ -204,17 +204,21 @@ def steady_radius(train, steering: float, m: int, d: float) -> float:
     return math.hypot(steady_circle(train, steering).R_B[m], d)
 
 
-def candidates(train, limit: float, P, lead: float):
-    """[(Curves, narrowest U)]: for each clothoid length of CLOTHOIDS, the smallest followable R."""
+def candidates(train, limit: float, P, lead: float, speed: float = TURN_SPEED, floor: float = 0.0):
+    """[(Curves, narrowest U)]: for each clothoid length of CLOTHOIDS, the smallest followable R at
+    ``speed`` (at least ``floor``)."""
     max_rate = train.actuator.max_rate
     m, d, _ = implement_of(train)
-    floor = steady_radius(train, limit, m, d)
+    floor = max(floor, steady_radius(train, limit, m, d))
     out = []
     for length in CLOTHOIDS:
         def ok(radius: float) -> bool:
             curves = Curves(radius, 1.0 / (radius * length))
-            return followable(demand(train, test_path(curves, lead), P=P), limit, max_rate)
+            return followable(demand(train, test_path(curves, lead), speed, P), limit, max_rate)
 
+        if ok(floor):
+            out.append((Curves(floor, 1.0 / (floor * length)), min_u(Curves(floor, 1.0 / (floor * length)))))
+            continue
         low, high = floor, 2.0 * floor
         while not ok(high):
             low, high = high, 2.0 * high
@@ -258,6 +262,17 @@ def turning(train, spacing: float | None = None) -> Turning:
              f"at {TURN_SPEED:g} m/s, every hitch {math.degrees(HITCH_MARGIN):g} deg from its limit")
     return Turning(curves.radius, curves.sharpness, width, check.steering, check.rate, check.margin, guard,
                    steady_radius(train, limit, m, d), bound, m, d)
+
+
+def ring_curves(train, turn: Turning, speed: float) -> Curves:
+    """The headland rings' corners: of the CC turns with R >= the turns' own that the train follows
+    at the working ``speed`` (the same limits; the rate grows with the speed), the one whose
+    quarter turn cuts a corner least (the smallest tangent length T)."""
+    limit = min(turn.guard - STEERING_ROOM, STEERING_SHARE * train.actuator.max_angle)
+    found = candidates(train, limit, pack(train), lead_length(train), speed, turn.radius)
+    if not found:
+        return turn.curves
+    return min((c for c, _ in found), key=quarter)
 
 
 def corners(train, axle: np.ndarray, heading: np.ndarray) -> np.ndarray:
