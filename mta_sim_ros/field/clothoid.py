@@ -32,6 +32,7 @@ from typing import Optional
 
 import numpy as np
 from scipy.optimize import brentq
+from scipy.special import fresnel
 
 from .route import Move, Pose, clothoid_points, end_of
 
@@ -69,34 +70,48 @@ def cc_turn(beta: float, curves: Curves) -> list[Move]:
     return [Move(Lp, 0.0, sharpness=side * sigma), Move(Lp, side * peak, sharpness=-side * sigma)]
 
 
+def clothoid_end(sharpness: float, length):
+    """(x, y) of a clothoid from straight, ``length`` (array) long at ``sharpness`` > 0, in its start
+    frame: the Fresnel integrals, x = sqrt(pi / sigma) C(l sqrt(sigma / pi)) (and S for y)."""
+    scale = math.sqrt(math.pi / sharpness)
+    S, C = fresnel(np.asarray(length) / scale)
+    return scale * C, scale * S
+
+
 @functools.lru_cache(maxsize=64)
 def _centre(radius: float, sharpness: float) -> tuple[float, float, float]:
     """(x, y, delta): the centre Omega of a left CC turn's arc in its start frame, and one
     clothoid's deflection."""
     kappa = 1.0 / radius
     L = kappa / sharpness
-    xy = clothoid_points(0.0, 0.0, sharpness, np.array([0.0, L]))[-1]
+    x, y = clothoid_end(sharpness, L)
     delta = 0.5 * kappa * L
-    return float(xy[0] - radius * math.sin(delta)), float(xy[1] + radius * math.cos(delta)), delta
+    return float(x - radius * math.sin(delta)), float(y + radius * math.cos(delta)), delta
 
 
-def cc_displacement(beta: float, curves: Curves) -> tuple[float, float]:
-    """(along, left) of a CC turn's end in its start frame."""
-    size, side = abs(beta), math.copysign(1.0, beta)
-    if size <= 1e-12:
-        return 0.0, 0.0
+def cc_displacement(beta, curves: Curves):
+    """(along, left) of a CC turn's end in its start frame (``beta`` a number or an array)."""
+    beta = np.asarray(beta, dtype=float)
+    size, side = np.abs(beta), np.where(beta < 0.0, -1.0, 1.0)
     if math.isinf(curves.sharpness):
         R = curves.radius
-        return R * math.sin(size), side * R * (1.0 - math.cos(size))
-    cx, cy, delta = _centre(curves.radius, curves.sharpness)
-    if size >= 2.0 * delta:  # the start point turned by beta + 2 mu about Omega (module docstring)
-        turn = size + 2.0 * math.atan2(cx, cy)
-        c, s = math.cos(turn), math.sin(turn)
-        return cx - (c * cx - s * cy), side * (cy - (s * cx + c * cy))
-    pose = Pose(0.0, 0.0, 0.0)
-    for move in cc_turn(size, curves):
-        pose = end_of(pose, move)
-    return pose.x, side * pose.y
+        along, left = R * np.sin(size), R * (1.0 - np.cos(size))
+    else:
+        cx, cy, delta = _centre(curves.radius, curves.sharpness)
+        turn = size + 2.0 * math.atan2(cx, cy)  # big turns: the start turned about Omega
+        along = cx - (np.cos(turn) * cx - np.sin(turn) * cy)
+        left = cy - (np.sin(turn) * cx + np.cos(turn) * cy)
+        # small turns (no arc): a clothoid to the bisector and its mirror, the end the start
+        # reflected across the normal at the middle point M
+        mx, my = clothoid_end(curves.sharpness, np.sqrt(size / curves.sharpness))
+        c, s = np.cos(0.5 * size), np.sin(0.5 * size)
+        a, b = -(mx * c + my * s), -(-mx * s + my * c)
+        small = size < 2.0 * delta
+        along = np.where(small, mx - a * c - b * s, along)
+        left = np.where(small, my - a * s + b * c, left)
+    if beta.ndim == 0:
+        return float(along), float(side * left)
+    return along, side * left
 
 
 def quarter(curves: Curves) -> float:
@@ -180,27 +195,26 @@ def fishtail_moves(offset: float, curves: Curves) -> list[Move]:
 def _csc(start: Pose, goal: Pose, s1: float, s2: float, curves: Curves) -> list[tuple[float, float, float]]:
     """[(beta1, straight, beta2)] of the CSC paths turning ``s1`` then ``s2`` (+1 left, -1 right):
     beta1 scanned over a full turn, each root of the straight's side condition refined."""
-    def parts(b1: float):
+    c0, s0 = math.cos(start.heading), math.sin(start.heading)
+
+    def parts(b1):
         a1, l1 = cc_displacement(s1 * b1, curves)
-        c0, s0 = math.cos(start.heading), math.sin(start.heading)
-        q1 = (start.x + c0 * a1 - s0 * l1, start.y + s0 * a1 + c0 * l1)
+        q1x, q1y = start.x + c0 * a1 - s0 * l1, start.y + s0 * a1 + c0 * l1
         h = start.heading + s1 * b1
         b2 = (s2 * (goal.heading - h)) % (2.0 * math.pi)
         a2, l2 = cc_displacement(s2 * b2, curves)
-        ch, sh = math.cos(h), math.sin(h)
-        q2 = (goal.x - ch * a2 + sh * l2, goal.y - sh * a2 - ch * l2)
-        dx, dy = q2[0] - q1[0], q2[1] - q1[1]
+        ch, sh = np.cos(h), np.sin(h)
+        dx, dy = goal.x - ch * a2 + sh * l2 - q1x, goal.y - sh * a2 - ch * l2 - q1y
         return ch * dy - sh * dx, ch * dx + sh * dy, b2
 
     grid = np.linspace(0.0, 2.0 * math.pi, 97)
-    side = [parts(b)[0] for b in grid]
+    side = parts(grid)[0]
     out = []
-    for k in range(len(grid) - 1):
-        if side[k] == 0.0 or side[k] * side[k + 1] < 0.0:
-            b1 = grid[k] if side[k] == 0.0 else brentq(lambda b: parts(b)[0], grid[k], grid[k + 1], xtol=1e-13)
-            _, straight, b2 = parts(b1)
-            if straight >= -1e-9:
-                out.append((b1, max(straight, 0.0), b2))
+    for k in np.flatnonzero((side[:-1] == 0.0) | (side[:-1] * side[1:] < 0.0)):
+        b1 = grid[k] if side[k] == 0.0 else brentq(lambda b: float(parts(b)[0]), grid[k], grid[k + 1], xtol=1e-13)
+        _, straight, b2 = parts(b1)
+        if straight >= -1e-9:
+            out.append((float(b1), max(float(straight), 0.0), float(b2)))
     return out
 
 

@@ -32,6 +32,10 @@ from .route import Move, Pose, moves_stretch
 
 #: mitre limit of the sharp offsets (a corner sharper than ~11 deg is bevelled)
 MITRE = 10.0
+#: m: how much nearer than its offset a ring may come to the field's edges
+CLEARANCE = 0.01
+#: bisection steps of an obstacle's gap
+GAP_BISECTIONS = 12
 
 
 @dataclass(frozen=True)
@@ -73,16 +77,20 @@ def opened(polygon, offset: float, radius: float, spacing: float):
 
 
 def headlands(polygon, rings: int, width: float, radius: float, spacing: float,
-              curves: Curves | None = None) -> Headlands:
+              curves: Curves | None = None, straight: float = 0.0) -> Headlands:
     """The ``rings`` headland passes of ``width`` in ``polygon`` with corners rounded to ``radius``
-    (CC turns of ``curves`` where given, module docstring), and the ground inside them."""
-    lines, index = [], []
+    (CC turns of ``curves`` where given, module docstring), and the ground inside them;
+    ``straight``: the shortest straight the train needs between two corners (an obstacle's gap grows
+    until its ring has it)."""
+    lines, index, field = [], [], polygon
+    if curves is not None and rings:
+        polygon = spaced(polygon, 0.5 * width, curves, straight)
     for i in range(rings):
         offset = (i + 0.5) * width
         if curves is None:
             found = loops(opened(polygon, offset, radius, spacing))
         else:
-            found = [cc_loop(loop, curves, offset, spacing) for loop in loops(mitred(polygon, offset, curves.radius))]
+            found = [fitted(loop, field, curves, offset, spacing) for loop in loops(mitred(polygon, offset, curves.radius))]
         for loop in found:
             lines.append(loop)
             index.append(i)
@@ -127,10 +135,10 @@ def corner_table(xy: np.ndarray):
 def tangent(turn: float, curves: Curves, concave: float) -> float:
     """m from a corner of deflection ``turn`` back to where its fillet starts: a CC turn of
     ``curves`` (turn > 0, convex), an arc of ``concave`` (turn < 0)."""
-    if turn < 0.0:
+    if turn < 0.0 and concave is not None:
         return concave * math.tan(-0.5 * turn)
-    along, left = cc_displacement(turn, curves)
-    return along - left / math.tan(turn) if abs(turn) < math.pi - 1e-9 else math.inf
+    along, left = cc_displacement(abs(turn), curves)
+    return along - left / math.tan(abs(turn)) if abs(turn) < math.pi - 1e-9 else math.inf
 
 
 def merged(pts: np.ndarray, turns: np.ndarray, curves: Curves, concave: float):
@@ -160,9 +168,10 @@ def merged(pts: np.ndarray, turns: np.ndarray, curves: Curves, concave: float):
     return np.array(pts), np.array(turns)
 
 
-def cc_loop(loop: sg.LineString, curves: Curves, concave: float, spacing: float) -> sg.LineString:
+def cc_loop(loop: sg.LineString, curves: Curves, concave, spacing: float) -> sg.LineString:
     """The closed ``loop`` (region on its left) with every convex corner a CC turn of ``curves``
-    tangent to its two edges and every concave one an arc of ``concave``, drawn ``spacing`` apart."""
+    tangent to its two edges and every concave one an arc of ``concave`` (None: a CC turn too),
+    drawn ``spacing`` apart."""
     pts, turns = merged(*corner_table(np.asarray(loop.coords)[:, :2]), curves, concave)
     k = len(pts)
     tan = [tangent(t, curves, concave) for t in turns]
@@ -175,8 +184,56 @@ def cc_loop(loop: sg.LineString, curves: Curves, concave: float, spacing: float)
         edge = float(np.hypot(*(b - a))) - tan[i] - tan[(i + 1) % k]
         moves = [Move(max(edge, 0.0))]
         t = turns[(i + 1) % k]
-        moves += cc_turn(t, curves) if t > 0.0 else [Move(-t * concave, -1.0 / concave)]
+        moves += cc_turn(t, curves) if t > 0.0 or concave is None else [Move(-t * concave, -1.0 / concave)]
         for st in moves_stretch("headland", Pose(float(start[0]), float(start[1]), heading), moves, spacing=spacing):
             out.append(st.xy[:-1])
     xy = np.vstack(out)
     return sg.LineString(np.vstack([xy, xy[:1]]))
+
+
+def fitted(loop: sg.LineString, polygon, curves: Curves, offset: float, spacing: float) -> sg.LineString:
+    """``cc_loop`` with CC turns at its concave corners too where that keeps ``offset`` from the
+    field's edges (less a centimetre), else arcs of the offset there."""
+    smooth = cc_loop(loop, curves, None, spacing)
+    if smooth.distance(polygon.boundary) >= offset - CLEARANCE:
+        return smooth
+    return cc_loop(loop, curves, offset, spacing)
+
+
+def spaced(polygon, offset: float, curves: Curves, straight: float):
+    """``polygon`` with each obstacle grown (mitred) by the gap that lets the first ring round it,
+    ``offset`` out, turn its corners in CC turns of ``curves`` and still keep ``offset`` from it
+    (a ring round an obstacle turns about each corner: at ``offset`` it would be tighter than R),
+    and that leaves ``straight`` between its corners (round a small obstacle the corners come so
+    close together that the chain cannot follow them one after the other)."""
+    holes = []
+    for ring in polygon.interiors:
+        hole = sg.Polygon(ring)
+        low, high = 0.0, 8.0 * curves.radius
+        if clears(hole, offset, 0.0, curves, straight):
+            holes.append(ring)
+            continue
+        for _ in range(GAP_BISECTIONS):
+            mid = 0.5 * (low + high)
+            low, high = (low, mid) if clears(hole, offset, mid, curves, straight) else (mid, high)
+        grown = hole.buffer(high, join_style="mitre", mitre_limit=MITRE)
+        holes.append(grown.exterior)
+    if not holes:
+        return polygon
+    shell = sg.Polygon(polygon.exterior)
+    out = shell.difference(shapely.union_all([sg.Polygon(h) for h in holes]))
+    return orient(out, 1.0) if isinstance(out, sg.Polygon) else out
+
+
+def clears(hole, offset: float, gap: float, curves: Curves, straight: float) -> bool:
+    """The ring ``offset`` + ``gap`` round ``hole`` (mitred), its corners CC turns, keeps ``offset``
+    and ``straight`` between its corners."""
+    around = orient(hole.buffer(offset + gap, join_style="mitre", mitre_limit=MITRE), 1.0)
+    line = sg.LineString(around.exterior.coords)
+    pts, turns = merged(*corner_table(np.asarray(line.coords)[:, :2]), curves, None)
+    tan = [tangent(t, curves, None) for t in turns]
+    k = len(pts)
+    edges = [float(np.hypot(*(pts[(i + 1) % k] - pts[i]))) - tan[i] - tan[(i + 1) % k] for i in range(k)]
+    if min(edges) < straight - 1e-9:
+        return False
+    return cc_loop(line, curves, None, 1.0).distance(hole) >= offset - CLEARANCE

@@ -26,12 +26,14 @@ from .order import cells, choose_order, route_cells, swath_heading
 from .route import SPACING, Move, Pose, assemble, moves_stretch, polyline_stretch, stretch_pose
 from .swaths import Swaths, best_angle, swaths_at
 from .clothoid import Curves
-from .turning import TURN_SPEED, Reach, Shapes, Turning, ring_curves, turn_reach, turning
+from .turning import TURN_SPEED, Reach, Shapes, Turning, min_straight, ring_curves, turn_reach, turning
 from .turns import reach, turn_kind, turn_moves, turn_offset
 from .types import ROUTES, TURNS, Plan, PlanOptions
 
 #: route vertices a plan may have (1000 km at SPACING): a field past it is refused before any work
 MAX_ROUTE_VERTICES = 2_000_000
+#: m: how much nearer than half the implement's width to an edge a turn's working point may come
+CLEARANCE_TOLERANCE = 0.05
 #: times the plan is laid out again with more headland rings for the turns it found it needs
 MAX_RELAYS = 3
 
@@ -48,8 +50,10 @@ class Layout:
 class Drive:
     """The route being built: its stretches and what was found on the way."""
 
-    def __init__(self, polygon, shapes: Shapes, loops, spacing: float, measured: Reach):
+    def __init__(self, polygon, shapes: Shapes, loops, spacing: float, measured: Reach, width: float):
         self.region = region_of(polygon)
+        # where the working point keeps the implement's half width from the edges (ring 0 runs on it)
+        self.clear = region_of(polygon.buffer(-(0.5 * width - CLEARANCE_TOLERANCE)))
         self.shapes, self.curves = shapes, shapes.turn.curves
         self.loops, self.spacing, self.measured = loops, spacing, measured
         self.stretches: list = []
@@ -83,17 +87,25 @@ class Drive:
             self.unfollowable += not ok
         else:  # the train's reach in a U, plus how much farther this turn takes the working point
             outline = self.measured.train + reach(kind, round(offset, 9), self.curves) - self.measured.point
-        self.reach = max(self.reach, outline)
         stretches = moves_stretch("turn", end, turn_moves(kind, end, goal, self.curves, middle), spacing=self.spacing)
+        if not inside(self.clear, stretches):  # a headland edge slanted or curved across the turn
+            found = transit(end, goal, self.curves, self.clear, self.loops, self.spacing)
+            if found.inside:
+                for st in found.stretches:
+                    st.kind = "turn"
+                self.kinds["via the headland"] += 1
+                self.add(found.stretches, "turn")
+                return
+        self.reach = max(self.reach, outline)
         self.kinds[kind] += 1
         self.add(stretches, "turn", inside(self.region, stretches))
 
     def transit(self, goal: Pose) -> None:
-        found: Connection = transit(self.pose, goal, self.curves, self.region, self.loops, self.spacing)
+        found: Connection = transit(self.pose, goal, self.curves, self.clear, self.loops, self.spacing)
         self.add(found.stretches, "transit", found.inside)
 
     def ring(self, loop, index: int) -> None:
-        approach, line, ok = onto_ring(self.pose, loop, self.curves, self.region, self.spacing)
+        approach, line, ok = onto_ring(self.pose, loop, self.curves, self.clear, self.spacing)
         self.add(approach, "transit", ok)
         self.add([polyline_stretch("headland", line, True, index, self.spacing)], "headland")
 
@@ -122,10 +134,10 @@ def check_options(options: PlanOptions, field: Field) -> None:
              f"(its swaths alone need ~{vertices:.3g})", "field", source, FieldError)
 
 
-def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int, corners: Curves) -> Layout:
+def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int, corners: Curves, follows=None) -> Layout:
     """Headlands (their corners CC turns of ``corners``), swaths and the order for ``rings`` rings."""
     width, notes = options.width, []
-    band = headlands(field.polygon, rings, width, corners.radius, SPACING, corners)
+    band = headlands(field.polygon, rings, width, corners.radius, SPACING, corners, follows)
     if band.inner.is_empty or band.inner.area <= 0.0:
         fail("headlands", f"{rings} rings of {width:g} m", "few enough to leave ground inside them", "field",
              field.source, FieldError)
@@ -147,11 +159,11 @@ def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int, corne
     return Layout(rings, band, found, order, notes)
 
 
-def drive(field: Field, layout: Layout, train, turn: Turning, options: PlanOptions, measured: Reach) -> Drive:
+def drive(field: Field, layout: Layout, shapes: Shapes, options: PlanOptions, measured: Reach) -> Drive:
     """The route's stretches: the cells' swaths joined by turns and transits, then the rings."""
     band = layout.headlands
     innermost = [line for line, i in zip(band.rings, band.ring_index) if i == layout.rings - 1]
-    run = Drive(field.polygon, Shapes(train, turn), innermost, SPACING, measured)
+    run = Drive(field.polygon, shapes, innermost, SPACING, measured, options.width)
     entry = field.entry if field.entry is not None else field.polygon.exterior.coords[0]
     angle = layout.swaths.angle
     for c, passes in enumerate(route_cells(cells(layout.swaths.swaths), layout.order, entry)):
@@ -188,6 +200,15 @@ def ring_groups(polygon, band: Headlands) -> list[list[int]]:
     return [sorted(g, key=lambda j: -band.ring_index[j]) for _, g in sorted(groups.items())]
 
 
+def expected_reach(shapes: Shapes, measured: Reach, options: PlanOptions) -> float:
+    """m: what the U-turns of the order auto would choose reach (order.py: its turns span m to 2m
+    spacings, m the fewest that hold the narrowest U), the band's first guess (the drive then
+    measures the turns it made)."""
+    spacing = options.width * (1.0 - options.overlap)
+    m = max(1, math.ceil(shapes.turn.min_u / spacing * (1.0 - 1e-9)))
+    return max([measured.train] + [shapes.u(k * spacing)[1] for k in range(m, 2 * m + 1)])
+
+
 def rings_for(reach_m: float, width: float) -> int:
     """Rings of ``width`` a band needs to hold ``reach_m``."""
     return max(0, math.ceil(reach_m / width - 1e-9))
@@ -200,20 +221,22 @@ def plan_field(field: Field, train, options: PlanOptions) -> Plan:
     measured = turn_reach(train, turn)
     speed = train.traction.set_speed if train.traction.set_speed > 0 else TURN_SPEED
     corners = ring_curves(train, turn, speed)
+    follows = min_straight(train, turn, corners, speed)
     asked = options.headlands if options.headlands is not None else field.headlands
     own = options.headlands is None
-    rings = max(asked, rings_for(measured.train, options.width)) if own else asked
+    shapes = Shapes(train, turn)
+    rings = max(asked, rings_for(expected_reach(shapes, measured, options), options.width)) if own else asked
     layout, run = None, None
     for _ in range(MAX_RELAYS):
         try:
-            layout = lay_out(field, options, turn, rings, corners)
+            layout = lay_out(field, options, turn, rings, corners, follows)
         except FieldError:
             if rings == asked or layout is not None:
                 raise
             rings = asked  # the field is too small for the band the turns want: the notes say so
             own = False
             continue
-        run = drive(field, layout, train, turn, options, measured)
+        run = drive(field, layout, shapes, options, measured)
         needed = rings_for(run.reach, options.width)
         if not (own and rings < needed <= MAX_HEADLANDS):
             break

@@ -190,8 +190,16 @@ def chain_axles(train, point: np.ndarray, heading: np.ndarray, m: int, d: float)
     return axle
 
 
-def followable(found: Demand, limit: float, max_rate: float) -> bool:
-    return found.steering <= limit and found.rate <= RATE_SHARE * max_rate and found.margin >= HITCH_MARGIN
+def followable(found: Demand, limit: float, max_rate: float, slack: float = 0.0) -> bool:
+    """Within the limits (module docstring); ``slack``: a share they may be passed by (a shape
+    checked after R and sigma were bisected to the limits: one entering the same way may ask a
+    hair more)."""
+    return (found.steering <= limit * (1.0 + slack) and found.rate <= RATE_SHARE * max_rate * (1.0 + slack)
+            and found.margin >= HITCH_MARGIN)
+
+
+#: the share a shape checked after the bisection may pass the limits by (0.1 deg of 17.6 deg)
+SLACK = 0.006
 
 
 def lead_length(train) -> float:
@@ -204,9 +212,10 @@ def steady_radius(train, steering: float, m: int, d: float) -> float:
     return math.hypot(steady_circle(train, steering).R_B[m], d)
 
 
-def candidates(train, limit: float, P, lead: float, speed: float = TURN_SPEED, floor: float = 0.0):
-    """[(Curves, narrowest U)]: for each clothoid length of CLOTHOIDS, the smallest followable R at
-    ``speed`` (at least ``floor``)."""
+def candidates(train, limit: float, P, lead: float, speed: float = TURN_SPEED, floor: float = 0.0,
+               angle: float = math.pi):
+    """[(Curves, narrowest U)]: for each clothoid length of CLOTHOIDS, the smallest R (at least
+    ``floor``) whose CC turn of ``angle`` the train follows at ``speed``."""
     max_rate = train.actuator.max_rate
     m, d, _ = implement_of(train)
     floor = max(floor, steady_radius(train, limit, m, d))
@@ -214,7 +223,8 @@ def candidates(train, limit: float, P, lead: float, speed: float = TURN_SPEED, f
     for length in CLOTHOIDS:
         def ok(radius: float) -> bool:
             curves = Curves(radius, 1.0 / (radius * length))
-            return followable(demand(train, test_path(curves, lead), speed, P), limit, max_rate)
+            moves = cc_turn(angle, curves)
+            return followable(demand(train, test_path(curves, lead, moves), speed, P), limit, max_rate)
 
         if ok(floor):
             out.append((Curves(floor, 1.0 / (floor * length)), min_u(Curves(floor, 1.0 / (floor * length)))))
@@ -266,13 +276,34 @@ def turning(train, spacing: float | None = None) -> Turning:
 
 def ring_curves(train, turn: Turning, speed: float) -> Curves:
     """The headland rings' corners: of the CC turns with R >= the turns' own that the train follows
-    at the working ``speed`` (the same limits; the rate grows with the speed), the one whose
-    quarter turn cuts a corner least (the smallest tangent length T)."""
+    at the working ``speed`` in a quarter turn (the same limits; the rate grows with the speed), the
+    one whose quarter turn cuts a corner least (the smallest tangent length T)."""
     limit = min(turn.guard - STEERING_ROOM, STEERING_SHARE * train.actuator.max_angle)
-    found = candidates(train, limit, pack(train), lead_length(train), speed, turn.radius)
+    found = candidates(train, limit, pack(train), lead_length(train), speed, turn.radius, 0.5 * math.pi)
     if not found:
         return turn.curves
     return min((c for c, _ in found), key=quarter)
+
+
+def min_straight(train, turn: Turning, curves: Curves, speed: float) -> float:
+    """m: the shortest straight between two CC quarter turns of ``curves`` the same way that the
+    train follows at ``speed`` (the chain, ~15 m long, is in the second turn while its carts still
+    come out of the first: close corners ask more than one); bisection, 0.1 m."""
+    limit = min(turn.guard - STEERING_ROOM, STEERING_SHARE * train.actuator.max_angle)
+    P, lead = pack(train), lead_length(train)
+
+    def ok(straight: float) -> bool:
+        moves = [*cc_turn(0.5 * math.pi, curves), Move(straight), *cc_turn(0.5 * math.pi, curves)]
+        return followable(demand(train, test_path(curves, lead, moves), speed, P), limit, train.actuator.max_rate,
+                          SLACK)
+
+    low, high = 0.0, lead
+    if ok(low):
+        return 0.0
+    while high - low > 0.1:
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if not ok(mid) else (low, mid)
+    return high
 
 
 def corners(train, axle: np.ndarray, heading: np.ndarray) -> np.ndarray:
@@ -327,9 +358,7 @@ class Shapes:
     def __init__(self, train, turn: Turning):
         self.train, self.turn = train, turn
         self.P, self.lead = pack(train), lead_length(train)
-        # the narrowest U asks up to the limit (bisection): another shape entering the same way may
-        # ask a hair more; 0.1 deg of the 2 deg room is granted to it
-        self.limit = min(turn.guard - STEERING_ROOM, STEERING_SHARE * train.actuator.max_angle) + math.radians(0.1)
+        self.limit = min(turn.guard - STEERING_ROOM, STEERING_SHARE * train.actuator.max_angle)
         self.kept: dict = {}
 
     def check(self, moves) -> tuple[Demand, float, float]:
@@ -350,7 +379,7 @@ class Shapes:
             rated = []
             for moves in options:
                 found, outline, _ = self.check(moves)
-                ok = followable(found, self.limit, self.train.actuator.max_rate)
+                ok = followable(found, self.limit, self.train.actuator.max_rate, SLACK)
                 rated.append((not ok, outline if ok else found.steering, moves, outline, ok))
             _, _, moves, outline, ok = min(rated, key=lambda r: r[:2])
             self.kept[width] = (moves, outline, ok)
