@@ -122,11 +122,17 @@ def loop_aims(loop: sg.LineString, pose: Pose, curves: Curves, sense: float) -> 
     return found
 
 
-def onto_loop(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
+def straight_parts(loop: sg.LineString, pose: Pose, step: float = 10.0, most: int = 24) -> list[float]:
+    """Distances along ``loop``, ``step`` apart, where it is straight: the ``most`` nearest ``pose``."""
+    found = [t for t in np.arange(0.5 * step, loop.length, step) if straight_at(loop, t)]
+    return sorted(found, key=lambda t: loop.interpolate(t).distance(sg.Point(pose.xy)))[:most]
+
+
+def onto_loop(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float, aims=None):
     """[(stretches, t, forward)]: CC Dubins paths from ``here`` onto ``loop`` where it is straight,
-    at points ahead and aside, in both directions of the loop (those that exist)."""
+    at points ahead and aside (or at ``aims``), in both directions of the loop (those that exist)."""
     out = []
-    for t in loop_aims(loop, here, curves, 1.0):
+    for t in (loop_aims(loop, here, curves, 1.0) if aims is None else aims):
         for forward in (True, False):
             goal = loop_pose(loop, t, forward)
             found = dubins_stretches("transit", here, goal, curves, region, spacing)
@@ -177,7 +183,10 @@ def transit(here: Pose, goal: Pose, curves: Curves, region, loops, spacing: floa
 def onto_ring(here: Pose, loop: sg.LineString, curves: Curves, region, spacing: float):
     """(approach stretches, the ring driven from where they meet it, inside?): the shortest way
     onto ``loop`` that stays inside, the loop then driven once round."""
-    options = onto_loop(here, loop, curves, region, spacing) or [
+    options = onto_loop(here, loop, curves, region, spacing)
+    if not any(inside(region, o[0]) for o in options):  # farther along the loop, where straight
+        options += onto_loop(here, loop, curves, region, spacing, straight_parts(loop, here))
+    options = options or [
         (dubins_stretches("transit", here, loop_pose(loop, t, fwd), curves, region, spacing, plain=True), t, fwd)
         for t in (loop.project(sg.Point(here.xy)),) for fwd in (True, False)]
     ranked = sorted(options, key=lambda o: sum(st.length for st in o[0]))

@@ -85,6 +85,8 @@ class Drive:
         if kind == "u":  # its shape chosen on the inverted chain, and its reach measured there
             middle, outline, ok = self.shapes.u(offset)
             self.unfollowable += not ok
+        elif kind == "bulb":
+            outline = self.shapes.bulb_reach(offset)
         else:  # the train's reach in a U, plus how much farther this turn takes the working point
             outline = self.measured.train + reach(kind, round(offset, 9), self.curves) - self.measured.point
         stretches = moves_stretch("turn", end, turn_moves(kind, end, goal, self.curves, middle), spacing=self.spacing)

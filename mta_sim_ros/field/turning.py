@@ -40,7 +40,7 @@ from ..physics.outline import box_of
 from ..physics.steady import SteadyStateError, steady_circle
 from ..validate import fail
 from .boundary import FieldError
-from .clothoid import Curves, cc_turn, min_u, quarter, u_moves, wider_radius
+from .clothoid import Curves, bulb_moves, cc_turn, min_u, quarter, u_moves, wider_radius
 from .route import Move, Pose, moves_stretch
 
 #: share of the actuator's max_angle a planned turn may use
@@ -385,3 +385,11 @@ class Shapes:
             self.kept[width] = (moves, outline, ok)
         moves, outline, ok = self.kept[width]
         return (moves if offset > 0 else mirrored(moves)), outline, ok
+
+    def bulb_reach(self, offset: float) -> float:
+        """m: the train's reach in a bulb ``|offset|`` across (its poses on the inverted chain)."""
+        width = round(abs(offset), 6)
+        key = ("bulb", width)
+        if key not in self.kept:
+            self.kept[key] = self.check(bulb_moves(width, self.turn.curves))[1]
+        return self.kept[key]
