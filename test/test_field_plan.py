@@ -1,8 +1,8 @@
 """Coverage plans (mta_sim_ros/field/plan.py and its stages) against closed forms and independent
-computations: the train's turn radius from the steady-circle formulas of docs/model.md, a
-simulated turn's reach against the swept annulus, headland rings and the inner ground of a
-rectangle against their areas by hand, swaths against the rectangle's width and length, turns
-against their geometry, the route's arrays against their own points."""
+computations: a turn's reach against the path and box of a lone tractor written out here,
+headland rings and the inner ground of a rectangle against their areas by hand, swaths against
+the rectangle's width and length, turns against their geometry, the route's arrays against their
+own points. The continuous-curvature turns themselves: test_field_turns.py."""
 from __future__ import annotations
 
 import math
@@ -17,8 +17,10 @@ from mta_sim_ros.field.headlands import headlands, quad_segs
 from mta_sim_ros.field.plan import plan_field, turn_kinds
 from mta_sim_ros.field.route import SPACING, Pose, end_of, wrap
 from mta_sim_ros.field.swaths import swaths_at
-from mta_sim_ros.field.turning import HITCH_MARGIN, STEERING_SHARE, margin_at, turn_reach, turning
-from mta_sim_ros.field.turns import bulb_geometry, bulb_moves, dubins_paths, fishtail_moves, u_moves
+from mta_sim_ros.field.clothoid import Curves, bulb_moves, fishtail_moves, quarter, u_moves
+from mta_sim_ros.field.route import moves_stretch
+from mta_sim_ros.field.turning import STEERING_SHARE, check_path, ring_curves, turn_reach, turning
+from mta_sim_ros.field.turns import dubins_paths
 from mta_sim_ros.field.types import PlanOptions
 from mta_sim_ros.physics.loader import load_train, load_train_text
 from mta_sim_ros.physics.outline import box_of
@@ -52,51 +54,41 @@ def rectangle(length: float, width: float, headlands: int = 0, angle_deg: float 
 # --------------------------------------------------------------------------- the train's turning
 
 
-def chain_radii(train, psi: float) -> list[float]:
-    """R_B of every cart at steering psi, by docs/model.md's formulas written out here."""
-    radii = [train.carts[0].length / math.tan(psi)]
-    for prev, cart in zip(train.carts, train.carts[1:]):
-        radii.append(math.sqrt(radii[-1] ** 2 + prev.hitch_offset ** 2 - cart.length ** 2))
-    return radii
-
-
-def test_the_turn_radius_is_the_working_points_on_the_steady_circle():
-    turn = turning(DEFAULT)
-    m, d = DEFAULT.cart_index("seeder"), 1.5
-    assert turn.radius == pytest.approx(math.hypot(chain_radii(DEFAULT, turn.steering)[m], d), rel=1e-12)
-    # the default train is held by its hitches: the margin is met exactly, a little more steering breaks it
-    assert turn.margin == pytest.approx(HITCH_MARGIN, abs=1e-9)
-    assert margin_at(DEFAULT, turn.steering * 1.001) < HITCH_MARGIN
-    assert turn.steering < STEERING_SHARE * DEFAULT.actuator.max_angle
-
-
-def test_a_lone_tractor_turns_at_its_actuators_share():
+def test_a_lone_tractor_turns_within_its_actuators_share():
+    """No hitch, no guard below the actuator's angle: the feedforward of its narrowest U stays within
+    STEERING_SHARE of max_angle, and its radius is at least the steady radius there."""
     tool = tractor(offset=-1.0)
     turn = turning(tool)
-    assert turn.steering == pytest.approx(STEERING_SHARE * math.radians(40.0), rel=1e-12)
-    assert turn.radius == pytest.approx(math.hypot(3.0 / math.tan(turn.steering), 1.0), rel=1e-12)
+    assert turn.steering <= STEERING_SHARE * math.radians(40.0) + 1e-9
+    assert turn.radius >= math.hypot(3.0 / math.tan(STEERING_SHARE * math.radians(40.0)), 1.0) - 1e-9
 
 
-def test_a_simulated_turn_reaches_the_outer_front_corners_radius():
-    """A lone tractor whose steering is at once where it is held turns B_1 on a circle of R_B1 about
-    a centre abreast of its start: the farthest any box corner gets ahead of the start is the outer
-    front corner's distance from the centre, sqrt(l^2 + (R + w/2)^2) (the swept annulus)."""
-    tool = tractor(offset=0.0, tau=0.001, rate=100.0)
+def test_a_lone_tractors_reach_is_its_boxs_farthest_corner_along_the_path():
+    """A tractor whose working point is its rear axle (offset 0) runs its axle on the planned path,
+    heading along it: its box's farthest corner beyond the swath end, written out here from the
+    path's own samples, is turn_reach's (both U shapes: the narrowest and two quarters)."""
+    tool = tractor(offset=0.0)
     turn = turning(tool)
     reach = turn_reach(tool, turn)
     centre, length, width, _ = box_of(tool, 0)
-    front = centre + length / 2
-    expected = math.hypot(front, 3.0 / math.tan(turn.steering) + width / 2)
-    assert reach.train == pytest.approx(expected, abs=0.05)
-    assert reach.point == pytest.approx(3.0 / math.tan(turn.steering), abs=0.05)
+    curves = turn.curves
+    far, point = -math.inf, -math.inf
+    for moves in (None, u_moves(2.0 * quarter(curves), curves)):
+        path = check_path(curves, 60.0, moves)
+        x, y, h = path[:, 0], path[:, 1], path[:, 2]
+        for along in (centre + length / 2, centre - length / 2):
+            for across in (width / 2, -width / 2):
+                far = max(far, float((x + along * np.cos(h) - across * np.sin(h)).max()))
+        point = max(point, float(x.max()))
+    assert reach.point == pytest.approx(point, abs=1e-9)
+    assert reach.train == pytest.approx(far, abs=0.05)  # the chain's own headings: sampled at 0.25 m chords
 
 
-def test_a_trains_turn_reaches_at_least_its_length_ahead_of_the_implement():
+def test_a_trains_u_turn_reaches_beyond_its_working_point():
     turn = turning(DEFAULT)
     reach = turn_reach(DEFAULT, turn)
-    ahead = sum(c.length for c in DEFAULT.carts) + sum(c.hitch_offset for c in DEFAULT.carts[:-1]) - 1.5
-    assert reach.train > ahead  # the tractor's front is that far ahead of the openers when the turn starts
-    assert reach.point > turn.radius  # the working point swings wide of the steady circle before settling
+    assert reach.point == pytest.approx(quarter(turn.curves), rel=1e-3)  # two quarters reach T
+    assert reach.train > reach.point + 3.0  # the tractor runs outside the implement, its front ahead
 
 
 # --------------------------------------------------------------------------- headlands
@@ -179,9 +171,10 @@ def ends(moves, pose=Pose(0.0, 0.0, 0.0)):
 
 
 @pytest.mark.parametrize("offset", [13.0, -13.0, 30.0])
-def test_a_u_turn_has_the_trains_radius_and_lands_on_the_next_swath(offset):
+def test_a_u_turn_of_arcs_has_the_trains_radius_and_lands_on_the_next_swath(offset):
+    """sharpness inf: the turns of arcs and straights (curvature jumps), as before CC turns."""
     R = 6.0
-    moves = u_moves(offset, R)
+    moves = u_moves(offset, Curves(R))
     assert {abs(m.curvature) for m in moves} == {0.0, 1 / R}
     end = ends(moves)
     assert (end.x, end.y) == pytest.approx((0.0, offset), abs=1e-9)
@@ -189,28 +182,28 @@ def test_a_u_turn_has_the_trains_radius_and_lands_on_the_next_swath(offset):
 
 
 @pytest.mark.parametrize("offset", [2.0, 8.0, -11.0])
-def test_a_bulb_turn_lands_on_the_next_swath_and_reaches_its_middle_circle(offset):
+def test_a_bulb_of_arcs_lands_on_the_next_swath_and_reaches_its_middle_circle(offset):
     R = 6.0
-    moves = bulb_moves(offset, R)
+    moves = bulb_moves(offset, Curves(R))
     end = ends(moves)
     assert (end.x, end.y) == pytest.approx((0.0, offset), abs=1e-9)
     assert math.cos(end.heading) == pytest.approx(-1.0)
-    _, x = bulb_geometry(offset, R)
     # the middle circle touches both end circles: its centre is 2R from (0, -R) and from (0, D + R)
-    assert math.hypot(x, abs(offset) / 2 + R) == pytest.approx(2 * R)
-    from mta_sim_ros.field.route import moves_stretch
-
+    x = math.sqrt(4 * R**2 - (abs(offset) / 2 + R) ** 2)
     points = np.vstack([st.xy for st in moves_stretch("turn", Pose(0.0, 0.0, 0.0), moves, spacing=0.01)])
     assert points[:, 0].max() == pytest.approx(x + R, abs=1e-3)
 
 
-def test_a_fishtail_backs_up_by_twice_the_radius_less_the_offset():
-    R, offset = 6.0, 8.0
-    moves = fishtail_moves(offset, R)
-    assert [m.reverse for m in moves] == [False, True, False]
-    assert moves[1].length == pytest.approx(2 * R - offset)
+def test_a_fishtail_backs_up_by_twice_its_quarter_less_the_offset():
+    curves, offset = Curves(6.0, 1.0 / (6.0 * 4.0)), 8.0
+    moves = fishtail_moves(offset, curves)
+    back = [m for m in moves if m.reverse]
+    assert len(back) == 1 and back[0].length == pytest.approx(2 * quarter(curves) - offset)
+    assert [m.reverse for m in moves] == [False] * 3 + [True] + [False] * 3
     end = ends(moves)
     assert (end.x, end.y, math.cos(end.heading)) == pytest.approx((0.0, offset, -1.0), abs=1e-9)
+    arcs = moves_stretch("turn", Pose(0.0, 0.0, 0.0), fishtail_moves(offset, Curves(6.0)))
+    assert sum(st.reverse for st in arcs) == 1 and ends(fishtail_moves(offset, Curves(6.0))).y == pytest.approx(offset)
 
 
 def test_dubins_paths_reach_their_goal_and_are_shortest_where_it_is_known():
@@ -234,16 +227,21 @@ def test_dubins_paths_reach_their_goal_and_are_shortest_where_it_is_known():
 def rect_plan():
     """The default train on a rectangle whose inner ground (H = 36 m) is 15 swaths wide."""
     field = rectangle(400.0, 252.0, headlands=3, entry=[0, 0])
-    return plan_field(field, DEFAULT, PlanOptions(width=12.0, angle=0.0, route="boustrophedon"))
+    return plan_field(field, DEFAULT, PlanOptions(width=12.0, angle=0.0))
 
 
 def test_a_rectangles_plan_has_its_swaths_by_hand(rect_plan):
     plan = rect_plan
     assert plan.headland_width == 36.0
-    assert plan.inner.area == pytest.approx((400 - 72) * (252 - 72), rel=1e-12)  # R < w/2: square inner corners
+    corners = ring_curves(DEFAULT, turning(DEFAULT, 12.0), 3.0)  # the rings' corners (at the working speed)
+    r = corners.radius - 6.0  # the inner edge of the last ring's strip: its corners of R - w/2
+    q = quad_segs(max(r, 36.0, 1.0), SPACING)
+    assert plan.inner.area == pytest.approx(rounded_rectangle_area(400 - 72, 252 - 72, r, q), rel=1e-12)
     assert len(plan.swaths) == 15
     assert all(line.length == pytest.approx(400 - 72, rel=1e-12) for line in plan.swaths)
-    assert strips_area(plan) == pytest.approx(plan.inner.area, rel=1e-6)
+    # the swaths' strips are the inner rectangle, the rounded corners' slivers too (the last ring's strip
+    # and the swaths' there overlap)
+    assert strips_area(plan) == pytest.approx((400 - 72) * (252 - 72), rel=1e-6)
     assert plan.target.equals(plan.field.polygon)  # headlands worked
 
 
@@ -251,11 +249,13 @@ def strips_area(plan) -> float:
     return shapely.union_all([line.buffer(plan.options.width / 2, cap_style="flat") for line in plan.swaths]).area
 
 
-def test_a_rectangles_turns_are_us_of_the_trains_radius_inside_the_field(rect_plan):
+def test_a_rectangles_turns_are_us_no_tighter_than_the_trains_radius_inside_the_field(rect_plan):
+    """12 m swaths, a narrowest U of ~20 m: auto skips one (every turn a U of 2 to 4 spacings)."""
     plan = rect_plan
     assert turn_kinds(plan) == {"u": 14}
+    assert any("route skip (" in note for note in plan.notes)
     turns = np.concatenate([plan.route.curvature[s.first:s.last] for s in plan.segments if s.kind == "turn"])
-    assert set(np.round(np.abs(turns) * plan.turn_radius, 12)) == {0.0, 1.0}
+    assert np.abs(turns).max() <= (1.0 + 1e-9) / plan.turn_radius
     assert not any("leave the field" in note for note in plan.notes)
     region = plan.field.polygon.buffer(1e-6)
     assert region.covers(sg.LineString(plan.route.xy))
@@ -298,21 +298,24 @@ def test_the_route_starts_at_the_swath_end_nearest_the_entry(rect_plan):
 
 
 def test_too_close_swaths_get_bulbs_and_auto_skips_them():
+    """Spacing 9.6 m, the narrowest U ~20 m: boustrophedon's turns are all bulbs; skip one (19.2 m)
+    is still too narrow, skip two (28.8 m) is not: auto takes it, all U's."""
     field = rectangle(300.0, 200.0, headlands=4)
-    options = dict(width=12.0, overlap=0.2, angle=0.0)  # spacing 9.6 m < 2R = 10.8 m
+    options = dict(width=12.0, overlap=0.2, angle=0.0)
+    turn = turning(DEFAULT, 9.6)
+    assert 19.2 < turn.min_u < 28.8
     plan = plan_field(field, DEFAULT, PlanOptions(route="boustrophedon", **options))
     assert set(turn_kinds(plan)) == {"bulb"}
     skipped = plan_field(field, DEFAULT, PlanOptions(route="auto", **options))
-    assert any("route skip" in note for note in skipped.notes)
-    kinds = turn_kinds(skipped)
-    assert kinds["u"] > kinds["bulb"] > 0  # skip-one: all U's but where it comes back (and the last overlap)
+    assert any("route skip2 (" in note for note in skipped.notes)
+    assert set(turn_kinds(skipped)) == {"u"}
     fishtail = plan_field(field, DEFAULT, PlanOptions(route="boustrophedon", turn="fishtail", **options))
     reverse = fishtail.route.reverse
     assert set(turn_kinds(fishtail)) == {"fishtail"} and reverse.any()
     backed = [s for s in fishtail.segments if s.reverse]
     assert all(s.kind == "turn" for s in backed)
     length = fishtail.route.s[backed[0].last] - fishtail.route.s[backed[0].first]
-    assert length == pytest.approx(2 * fishtail.turn_radius - 9.6, abs=1e-6)
+    assert length == pytest.approx(2 * quarter(turn.curves) - 9.6, abs=1e-6)
 
 
 def test_a_narrow_headland_is_widened_for_the_turns_or_said():
@@ -351,7 +354,7 @@ def test_a_transit_blocked_by_an_obstacle_goes_round_it_on_the_headland():
     field = sg.Polygon([(0, 0), (200, 0), (200, 100), (0, 100)], [obstacle])
     ring = [line for line in loops(opened(field, 6.0, 5.0, SPACING)) if line.distance(sg.Point(100, 50)) < 30]
     here, goal = Pose(60.0, 50.0, 0.0), Pose(140.0, 50.0, 0.0)  # the obstacle lies between them
-    found = transit(here, goal, 5.0, region_of(field), ring, SPACING)
+    found = transit(here, goal, Curves(5.0, 1.0 / (5.0 * 4.0)), region_of(field), ring, SPACING)
     path = sg.LineString(np.vstack([st.xy for st in found.stretches]))
     assert found.inside and not path.intersects(sg.Polygon(obstacle))
     assert path.coords[0] == pytest.approx((60.0, 50.0)) and path.coords[-1] == pytest.approx((140.0, 50.0))

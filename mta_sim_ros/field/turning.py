@@ -145,7 +145,7 @@ def guarded_steering(train, margin: float = GUARD_MARGIN) -> float:
     return low
 
 
-def test_path(curves: Curves, lead: float, moves=None) -> np.ndarray:
+def check_path(curves: Curves, lead: float, moves=None) -> np.ndarray:
     """(m, 3) x, y, heading of a straight of ``lead``, ``moves`` (default: the narrowest U, a CC
     half turn at ``curves``) and a straight of ``lead``, sampled at CHECK_SPACING."""
     turn = cc_turn(math.pi, curves) if moves is None else moves
@@ -224,7 +224,7 @@ def candidates(train, limit: float, P, lead: float, speed: float = TURN_SPEED, f
         def ok(radius: float) -> bool:
             curves = Curves(radius, 1.0 / (radius * length))
             moves = cc_turn(angle, curves)
-            return followable(demand(train, test_path(curves, lead, moves), speed, P), limit, max_rate)
+            return followable(demand(train, check_path(curves, lead, moves), speed, P), limit, max_rate)
 
         if ok(floor):
             out.append((Curves(floor, 1.0 / (floor * length)), min_u(Curves(floor, 1.0 / (floor * length)))))
@@ -263,10 +263,10 @@ def turning(train, spacing: float | None = None) -> Turning:
     def key(item):
         curves, width = item
         spans = math.ceil(width / spacing * (1.0 - 1e-9)) if spacing else width
-        return spans, reach_of(train, demand(train, test_path(curves, lead), P=P))[0], width
+        return spans, reach_of(train, demand(train, check_path(curves, lead), P=P))[0], width
 
     curves, width = min(found, key=key)
-    check = demand(train, test_path(curves, lead), P=P)
+    check = demand(train, check_path(curves, lead), P=P)
     bound = (f"the feedforward {math.degrees(STEERING_ROOM):g} deg inside the guard "
              f"{math.degrees(guard):.3g} deg, its rate within {RATE_SHARE:.0%} of {train.actuator.max_rate:g} rad/s "
              f"at {TURN_SPEED:g} m/s, every hitch {math.degrees(HITCH_MARGIN):g} deg from its limit")
@@ -294,7 +294,7 @@ def min_straight(train, turn: Turning, curves: Curves, speed: float) -> float:
 
     def ok(straight: float) -> bool:
         moves = [*cc_turn(0.5 * math.pi, curves), Move(straight), *cc_turn(0.5 * math.pi, curves)]
-        return followable(demand(train, test_path(curves, lead, moves), speed, P), limit, train.actuator.max_rate,
+        return followable(demand(train, check_path(curves, lead, moves), speed, P), limit, train.actuator.max_rate,
                           SLACK)
 
     low, high = 0.0, lead
@@ -333,7 +333,7 @@ def turn_reach(train, turn: Turning) -> Reach:
     curves = turn.curves
     out = []
     for moves in (None, u_moves(2.0 * quarter(curves), curves)):
-        found = demand(train, test_path(curves, lead, moves))
+        found = demand(train, check_path(curves, lead, moves))
         out.append(reach_of(train, found))
     return Reach(max(o[0] for o in out), max(o[1] for o in out), TURN_SPEED)
 
@@ -363,7 +363,7 @@ class Shapes:
 
     def check(self, moves) -> tuple[Demand, float, float]:
         """(demand, train reach, working point reach) of a left turn's ``moves`` between straights."""
-        found = demand(self.train, test_path(self.turn.curves, self.lead, moves), P=self.P)
+        found = demand(self.train, check_path(self.turn.curves, self.lead, moves), P=self.P)
         outline, point = reach_of(self.train, found)
         return found, outline, point
 
