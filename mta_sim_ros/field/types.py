@@ -14,7 +14,7 @@ from shapely import geometry as sg
 
 from .boundary import Field
 
-ROUTES = ("auto", "boustrophedon", "skip")
+ROUTES = ("auto", "boustrophedon", "skip", *(f"skip{k}" for k in range(2, 10)))  # order.ORDERS
 TURNS = ("auto", "u", "bulb", "fishtail")
 SEGMENT_KINDS = ("swath", "headland", "turn", "transit")
 
@@ -27,7 +27,7 @@ class PlanOptions:
     overlap: float = 0.0  # share of the width neighbouring swaths overlap, in [0, 0.5)
     angle: Optional[float] = None  # rad from +x: the swaths' direction; None: the angle that minimises turns
     headlands: Optional[int] = None  # headland rings; None: the field's own
-    route: str = "auto"  # ROUTES: the order of the swaths (auto: the first order whose every turn is feasible)
+    route: str = "auto"  # ROUTES: the order of the swaths (auto: the fewest turns narrower than the narrowest U)
     turn: str = "auto"  # TURNS: the kind of every headland turn (auto: u where it fits, else bulb)
     work_headlands: bool = True  # the headland rings are worked, last, after the swaths
 
