@@ -85,7 +85,7 @@ def main(args) -> int:
         f"{simulated / median['loop']:.0f} x real time ({1e6 * median['loop'] / ticks:.1f} us a tick).", "",
         "Parts: imports and writing (Python, numpy, numba, shapely, scipy.linalg, and trace.npz, coverage.json, "
         "metrics: the wall time the command's own timings leave), inputs (the field and train files read and "
-        "checked), plan (field.plan.plan_field, with its simulated U-turn), design (the LQR gains: the linear model by "
+        "checked), plan (field.plan.plan_field, its turns sized on the inverted chain), design (the LQR gains: the linear model by "
         "forward-mode duals, scipy's Riccati solver), compile (numba's cache load of the loop, or its compilation), "
         "loop (the whole route, tick by tick, compiled), metrics (field/coverage.py: shapely's strips, union, "
         "skips by cause, double-worked ground, footprints).", "",

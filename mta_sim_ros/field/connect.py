@@ -93,13 +93,13 @@ def dubins_stretches(kind: str, start: Pose, goal: Pose, curves: Curves, region,
             abs(math.remainder(goal.heading - start.heading, 2 * math.pi)) < 1e-9:
         return []
     paths = cc_dubins_paths(start, goal, curves) or (dubins_paths(start, goal, curves.radius) if plain else [])
-    options = [moves_stretch(kind, start, moves, spacing=spacing) for moves in paths]
-    if not options:
-        return None
-    for option in options:
+    first = None
+    for moves in paths:  # shortest first: drawn one by one until one is inside
+        option = moves_stretch(kind, start, moves, spacing=spacing)
         if inside(region, option):
             return option
-    return options[0]
+        first = option if first is None else first
+    return first
 
 
 def straight_at(loop: sg.LineString, t: float) -> bool:

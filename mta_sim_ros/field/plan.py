@@ -3,10 +3,14 @@ and the route of the implement's working point (types.Plan). The stages are modu
 as Fields2Cover separates them: turning.py (the train's radius and reach), headlands.py,
 swaths.py, order.py, turns.py, connect.py (transits), route.py (the arrays).
 
-The headland band is as many rings as the field (or the options) asks, and at least what the
-train's simulated U-turn reaches beyond a swath's end (turning.py) plus what a bulb turn reaches
-beyond a U: when the rings are the field's own, more are added (and said in the notes); when the
-options fix them, the notes say by how much the turns reach past the band. The route starts at
+The turns are continuous-curvature turns the train follows (clothoid.py, turning.py: their radius
+and sharpness chosen on the kinematic chain's inverse). The headland band is as many rings as the
+field (or the options) asks, and at least what the plan's turns reach beyond a swath's end (every
+cart's box along the inverted chain, turning.Shapes: first guessed from the U widths the order
+will use, then measured on the turns made): when the rings are the field's own, more are added
+(and said in the notes); when the options fix them, the notes say by how much the turns reach past
+the band. A turn whose working point would come nearer an edge than half the implement (a curved
+or slanted headland edge across it) goes round on the headland instead. The route starts at
 the swath end nearest the field's entry (its first boundary vertex when it gives none), works
 the swaths cell by cell, then, when the headlands are worked, each ring from the innermost out.
 """
