@@ -28,6 +28,7 @@ from mta_sim_ros.field.scene import load_field_or_scene, load_field_scene
 from mta_sim_ros.physics.loader import load_train
 from mta_sim_ros.sweep import engine, report, results
 from mta_sim_ros.sweep import spec as sweep_spec
+from mta_sim_ros.validate import InputError
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config"
@@ -120,7 +121,7 @@ def test_a_field_scene_s_rows_are_the_field_worked_directly(field_sweep):
     spec, out = field_sweep
     df = results.load_results(out)
     rows = df[df["scene"] == "small_work"]
-    assert len(rows) == 4 and (rows["verdict"] == "ok").all()
+    assert len(rows) == 4 and (rows["verdict"] == "ok").sum() >= 3
     for _, row in rows.iterrows():
         train = load_train(TRAIN)
         carts = list(train.carts)
@@ -128,6 +129,11 @@ def test_a_field_scene_s_rows_are_the_field_worked_directly(field_sweep):
         train = dataclasses.replace(train, carts=tuple(carts))
         scene = load_field_scene(Path(spec.scenes[0][2]))
         options = dataclasses.replace(scene.options(train), angle=math.radians(row["scene.plan.angle_deg"]))
+        if row["verdict"] == "refused":  # a train whose turns need more headland than the field has
+            with pytest.raises(InputError) as refused:
+                work_field(scene.field, train, options, Settings(**scene.drive))
+            assert str(refused.value) == row["reason"]
+            continue
         direct = work_field(scene.field, train, options, Settings(**scene.drive)).result.values
         for name, value in direct.items():
             assert (math.isnan(value) and math.isnan(row[name])) or value == row[name], name
@@ -137,7 +143,8 @@ def test_a_field_scene_s_rows_are_the_field_worked_directly(field_sweep):
     for length in (4.0, 6.0):
         same = straight[straight["carts[1].length"] == length]
         assert len(same) == 2 and same["energy_kWh"].nunique() == 1
-    assert np.isnan(straight["total_time_h"]).all() and np.isfinite(rows["total_time_h"]).all()
+    ok = rows["verdict"] == "ok"
+    assert np.isnan(straight["total_time_h"]).all() and np.isfinite(rows["total_time_h"][ok]).all()
 
 
 def test_the_report_compares_a_field_by_time_fuel_and_skipped_area(field_sweep, tmp_path):
