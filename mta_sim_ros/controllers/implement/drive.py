@@ -111,20 +111,27 @@ def rk4_step(train, settings: Settings) -> float:
     return step
 
 
-def run_field(plan: Plan, train, settings: Settings = Settings(), compiled: bool | None = None,
-              start_offset: float = 0.0) -> FieldRun:
-    """Work ``plan`` with ``train`` closed loop (module docstring). ``compiled``: as Simulation's
-    (None: compiled where numba runs and MTA_SIM_NO_JIT is not set). ``start_offset``: the train
-    starts that far (m) left of the route's start, across its travel (a planted error)."""
-    t0 = time.perf_counter()
+def law_inputs(route: Route, train, settings: Settings) -> tuple[Controller, np.ndarray, np.ndarray]:
+    """(the controller, the route as its table, loop.params): what ``loop.law`` reads besides the
+    state, for the offline run and the tracker (tracker.py) alike."""
     ctl = controller(train, settings)
-    R = route_table(plan.route, ctl.speeds, ctl.early)
+    R = route_table(route, ctl.speeds, ctl.early)
     params = np.zeros(loop.PARAMS)
     params[loop.P_CART], params[loop.P_OFFSET] = ctl.cart, ctl.offset
     params[loop.P_LEAD] = ctl.lead
     params[loop.P_MAX_ERROR], params[loop.P_OFF_ROUTE] = settings.max_error, settings.off_route
     params[loop.P_DECEL], params[loop.P_CREEP] = settings.decel, settings.creep
     params[loop.P_FORWARD_ANGLE] = ctl.forward_angle
+    return ctl, R, params
+
+
+def run_field(plan: Plan, train, settings: Settings = Settings(), compiled: bool | None = None,
+              start_offset: float = 0.0) -> FieldRun:
+    """Work ``plan`` with ``train`` closed loop (module docstring). ``compiled``: as Simulation's
+    (None: compiled where numba runs and MTA_SIM_NO_JIT is not set). ``start_offset``: the train
+    starts that far (m) left of the route's start, across its travel (a planted error)."""
+    t0 = time.perf_counter()
+    ctl, R, params = law_inputs(plan.route, train, settings)
     work, lift = Model(train), Model(lifted(train))
     first = work if R[0, loop.R_WORKING] else lift
     y = np.ascontiguousarray(start_state(start_scene(first.train, plan.route, float(R[0, loop.R_SPEED]), settings),

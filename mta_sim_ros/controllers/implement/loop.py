@@ -36,13 +36,18 @@ PARAMS = 8
 
 #: a trace row: the scalars, then TRACE_CART per cart
 (T_TIME, T_WX, T_WY, T_LOWERED, T_SEGMENT, T_ERROR, T_STATION, T_MARGIN, T_SPEED, T_POWER, T_STEERING,
- T_COMMAND, T_SET_SPEED, T_HEADING_ERROR) = range(14)
-TRACE_HEAD = 14
+ T_COMMAND, T_SET_SPEED, T_HEADING_ERROR, T_AX, T_AY) = range(16)
+TRACE_HEAD = 16
 T_BX, T_BY, T_TH, T_PHI = range(4)
 TRACE_CART = 4
 
 #: how a run ended (``drive``'s status)
 DONE, NOT_CLEAR, OFF_ROUTE, OUT_OF_TIME = range(4)
+
+#: ``answer``'s out: the law's command, set speed, lowered (1/0), W's segment, share along it, lateral
+#: error, finished (1/0), W's x, y, heading
+(A_COMMAND, A_SPEED, A_LOWERED, A_SEGMENT, A_SHARE, A_ERROR, A_FINISHED, A_WX, A_WY, A_WTH) = range(10)
+ANSWER = 10
 
 #: the cursor: the route segment W was last projected on, the look-ahead's segment, ticks done,
 #: whether the reference path is computed (``drive``)
@@ -189,6 +194,35 @@ def command_of(P, y, route, ref, j, u, error, cursor, gains, row, params, x_ref)
 
 
 @jitable
+def law(P, y, route, ref, cursor, gains, row, params, x_ref, W):
+    """The controller's tick (design.py), at state y: the working point W (into ``W``) projected
+    on the route from the cursor (``locate``), the steering command and speed set-point
+    (``command_of``), and whether the implement is lowered (W's stretch is worked). What the
+    offline loop (``drive``) and the tracker fed pose by pose (``answer``) both run. Returns
+    (command, v_set, lowered, j, u, error, finished); the cursor moved."""
+    W[0], W[1], W[2] = working_point(P, y, int(params[P_CART]), params[P_OFFSET])
+    j, u, error, finished = locate(route, cursor, W[0], W[1])
+    command, v_set = command_of(P, y, route, ref, j, u, error, cursor, gains, row, params, x_ref)
+    return command, v_set, route[j, R_WORKING] != 0.0, j, u, error, finished
+
+
+@entry
+def answer(P, y, route, ref, cursor, gains, row, params, out):
+    """``law`` at one state, called from Python (controllers/implement/tracker.py): into ``out``
+    (A_* columns). The first call (cursor[CU_READY] = 0) computes the reference path into ``ref``,
+    as ``drive``'s first call does."""
+    x_ref = np.empty(int(P[H.n]) + 1)
+    W = np.empty(3)
+    if cursor[CU_READY] == 0.0:
+        reference_path(P, route, int(params[P_CART]), params[P_OFFSET], ref)
+        cursor[CU_READY] = 1.0
+    command, v_set, lowered, j, u, error, finished = law(P, y, route, ref, cursor, gains, row, params, x_ref, W)
+    out[A_COMMAND], out[A_SPEED], out[A_LOWERED] = command, v_set, 1.0 if lowered else 0.0
+    out[A_SEGMENT], out[A_SHARE], out[A_ERROR], out[A_FINISHED] = j, u, error, 1.0 if finished else 0.0
+    out[A_WX], out[A_WY], out[A_WTH] = W[0], W[1], W[2]
+
+
+@jitable
 def write_row(P_out, y, command, v_set, max_rate, route, j, u, error, W, t, cart, sc, dy, row):
     """One trace row (T_*) at state y, W = (x, y, heading) projected at (j, u); ``command`` and
     ``v_set`` the input held over the tick that ended here (row 0: the first tick's)."""
@@ -200,6 +234,7 @@ def write_row(P_out, y, command, v_set, max_rate, route, j, u, error, W, t, cart
     row[T_MARGIN], row[T_SPEED] = sc[MARGIN], y[n + 3]
     row[T_POWER] = sc[TRACTION] * y[n + 3]
     row[T_STEERING], row[T_COMMAND], row[T_SET_SPEED] = y[n + 2], command, v_set
+    row[T_AX], row[T_AY] = y[0], y[1]
     travel = W[2] + (math.pi if route[j, R_REVERSE] != 0.0 else 0.0)
     row[T_HEADING_ERROR] = wrap_angle(travel - route_heading(route, j, u))
     for k in range(n):
@@ -210,7 +245,7 @@ def write_row(P_out, y, command, v_set, max_rate, route, j, u, error, W, t, cart
 @entry
 def drive(P_work, P_lift, T, y0, route, ref, gains, row, params, tick, max_step, split, cursor, trace):
     """Ticks cursor[CU_TICKS] on, until W passes the route's end or a guard stops the run: each tick
-    the command of ``command_of`` held, the train stepped with P_work where W's stretch is worked,
+    the command of ``law`` held, the train stepped with P_work where W's stretch is worked,
     P_lift where it is lifted (the implement's draft off), trace row i + 1 written after tick i.
     The first call (cursor[CU_READY] = 0) computes the reference path into ``ref``
     (``reference_path``) and writes row 0, the start. Stops after the first tick whose state is not
@@ -232,9 +267,7 @@ def drive(P_work, P_lift, T, y0, route, ref, gains, row, params, tick, max_step,
     if first:
         reference_path(P_work, route, m_cart, offset, ref)
         cursor[CU_READY] = 1.0
-    W[0], W[1], W[2] = working_point(P_work, y, m_cart, offset)
-    j, u, error, finished = locate(route, cursor, W[0], W[1])
-    command, v_set = command_of(P_work, y, route, ref, j, u, error, cursor, gains, row, params, x_ref)
+    command, v_set, lowered, j, u, error, finished = law(P_work, y, route, ref, cursor, gains, row, params, x_ref, W)
     if first:
         write_row(P_work, y, command, v_set, max_rate, route, j, u, error, W, i * tick, cart, sc, dy, trace[i])
     nfev = 0
@@ -243,7 +276,7 @@ def drive(P_work, P_lift, T, y0, route, ref, gains, row, params, tick, max_step,
             return y, DONE, nfev
         if i + 1 >= trace.shape[0]:
             return y, OUT_OF_TIME, nfev
-        P = P_work if route[j, R_WORKING] != 0.0 else P_lift
+        P = P_work if lowered else P_lift
         t0 = i * tick
         y1, used, _ = advance_in(model_rhs, switches, P, T, y, command, v_set, max_rate, t0, t0 + tick, max_step,
                                  split, work)
@@ -251,11 +284,11 @@ def drive(P_work, P_lift, T, y0, route, ref, gains, row, params, tick, max_step,
         nfev += used
         i += 1
         cursor[CU_TICKS] = i
-        W[0], W[1], W[2] = working_point(P, y, m_cart, offset)
-        j, u, error, finished = locate(route, cursor, W[0], W[1])
+        command_next, v_next, lowered, j, u, error, finished = law(P, y, route, ref, cursor, gains, row, params,
+                                                                   x_ref, W)
         write_row(P, y, command, v_set, max_rate, route, j, u, error, W, i * tick, cart, sc, dy, trace[i])
         if not clear(P, y):
             return y, NOT_CLEAR, nfev
         if abs(error) > params[P_OFF_ROUTE]:
             return y, OFF_ROUTE, nfev
-        command, v_set = command_of(P, y, route, ref, j, u, error, cursor, gains, row, params, x_ref)
+        command, v_set = command_next, v_next
