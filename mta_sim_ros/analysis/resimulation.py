@@ -4,12 +4,13 @@ recorded commands fed into a fresh ``Simulation`` tick by tick, and the re-simul
 (hitch_poses, cart_velocities, traction_power, applied_steering) compared with the recorded ones
 at every tick.
 
-The tick starting at t_k holds the last steering_angle and speed_setpoint message with log_time
-<= t_k, as both ``mta run`` and the node stamp them; a node bag's commands go through the node's
-own checks (non-finite refused, out of range clamped; commands.py), cmd_vel and ackermann_cmd
-through its rule for each, and the watchdog's records are the steering the node held. Topics may
-carry a namespace (matched by their last name component); a node bag's time may be offset after a
-reset (metadata ``clock_offset``). The same method and step give every value exactly (``identical``).
+The tick starting at t_k holds the last steering_angle and speed_setpoint message with log_time <=
+t_k, as both ``mta run`` and the node stamp them; a node bag's commands go through the node's own
+checks (non-finite refused, out of range clamped; commands.py), cmd_vel, ackermann_cmd and
+implement_lowered through its rule for each, and the watchdog's records are the steering the node
+held. Topics may carry a namespace (matched by their last name component); a node bag's time may be
+offset after a reset (metadata ``clock_offset``). The same method and step give every value exactly
+(``identical``).
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from dataclasses import dataclass, field
 
 from ..bag import read_messages, read_metadata, summary
 from ..messages.topics import WATCHDOG_TOPIC
-from ..node.commands import ackermann_setting, command_ranges, hold, twist_setting
+from ..node.commands import Setting, ackermann_setting, command_ranges, hold, twist_setting
 from ..node.runlog import RECORD, recorded_options, recorded_scene
 from ..physics.spec import INTEGRATOR_METHODS as METHODS
 from ..validate import MAX_TICKS, fail, is_finite, show, step_floor
@@ -28,7 +29,7 @@ from .bagdata import last_component
 #: Outputs compared (last name component of the topic).
 OUTPUTS = ("hitch_poses", "cart_velocities", "traction_power", "applied_steering")
 #: Commands fed into the re-simulation.
-COMMANDS = ("steering_angle", "speed_setpoint", "cmd_vel", "ackermann_cmd", WATCHDOG_TOPIC)
+COMMANDS = ("steering_angle", "speed_setpoint", "cmd_vel", "ackermann_cmd", "implement_lowered", WATCHDOG_TOPIC)
 
 
 @dataclass
@@ -152,6 +153,7 @@ class _Messages:
 
     def __init__(self, steering: "_Held", speed: "_Held", rate: _RateLimit):
         self.steering, self.speed, self.rate = steering, speed, rate
+        self.lowered = True  # the implement (implement_lowered), lowered until commanded
 
     def take(self, setting) -> None:
         if setting.steering is not None:
@@ -159,6 +161,8 @@ class _Messages:
             self.rate.rate = setting.rate
         if setting.speed is not None:
             self.speed.value = setting.speed
+        if setting.lowered is not None:
+            self.lowered = setting.lowered
 
 
 class _Held:
@@ -215,6 +219,7 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
         while key() < log_time:
             inputs.take_until(key())
             sim.set_rate_limit(inputs.steering_rate.rate)
+            sim.set_lowered(inputs.messages.lowered)
             try:
                 sim.advance(inputs.steering.value, inputs.speed.value)
             except (ModelValidityError, IntegrationError) as err:
@@ -274,7 +279,7 @@ class RecordedInputs:
         self.speed = _Held(sim.v_set, ranges.get("speed_setpoint"))
         self.steering_rate = _RateLimit(self.steering)
         wheelbase, actuator = scene.train.carts[0].length, scene.train.actuator
-        messages = _Messages(self.steering, self.speed, self.steering_rate)
+        self.messages = messages = _Messages(self.steering, self.speed, self.steering_rate)
 
         def cmd_vel(m):
             return twist_setting(float(m.linear.x), float(m.angular.z), wheelbase, actuator.max_angle)
@@ -289,6 +294,7 @@ class RecordedInputs:
         # the watchdog's record is the steering the node held from then on (see topics.WATCHDOG_TOPIC)
         readers = {"steering_angle": (self.steering_rate, float), "speed_setpoint": (self.speed, float),
                    "cmd_vel": (messages, cmd_vel), "ackermann_cmd": (messages, ackermann_cmd),
+                   "implement_lowered": (messages, lambda m: Setting(lowered=bool(m.data))),
                    WATCHDOG_TOPIC: (self.steering, float)}
         by_recorded = {topics[n]: readers[n] for n in COMMANDS if n in topics}
         self.commands = []

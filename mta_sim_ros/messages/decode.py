@@ -1,5 +1,6 @@
 """The command messages a controller sends, read from their CDR bytes without ROS: cmd_vel
-(geometry_msgs/Twist) and ackermann_cmd (ackermann_msgs/AckermannDriveStamped).
+(geometry_msgs/Twist), ackermann_cmd (ackermann_msgs/AckermannDriveStamped) and implement_lowered
+(std_msgs/Bool).
 
 The node hands the session the bytes it received (the bag records them as they are) and the
 session reads the few numbers the command rule needs (commands.twist_setting,
@@ -13,6 +14,7 @@ import struct
 
 TWIST_TYPE = "geometry_msgs/msg/Twist"
 ACKERMANN_TYPE = "ackermann_msgs/msg/AckermannDriveStamped"
+BOOL_TYPE = "std_msgs/msg/Bool"
 
 #: the encapsulation identifiers of plain CDR: big and little endian
 _ENDIAN = {b"\x00\x00": ">", b"\x00\x01": "<"}
@@ -56,3 +58,12 @@ def decode_ackermann(data: bytes) -> tuple[float, float, float]:
                                  f"{length} bytes and the drive")
     steering, rate, speed, _, _ = struct.unpack_from(order + "5f", body, offset)
     return steering, rate, speed
+
+
+def decode_bool(data: bytes) -> bool:
+    """data of a std_msgs/Bool: one byte from offset 4, 0 false, else true (as rclpy and the bag
+    readers take it)."""
+    _endian(data, BOOL_TYPE)
+    if len(data) < 5:
+        raise CommandDecodeError(f"{BOOL_TYPE}: {len(data)} bytes, expected at least 5")
+    return data[4] != 0

@@ -48,10 +48,12 @@ TOPICS = {
 # The inputs of the simulator (the node subscribes to these; the others it publishes).
 COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
 
-# The node's commands in the conventions controllers speak (commands.py: one rule for all):
-# topic -> type. The node subscribes ackermann_cmd only where ackermann_msgs is installed.
+# The node's commands in the conventions controllers speak (commands.py: one rule for all), and
+# the implement's (lowered or lifted: run.simulation.Simulation.set_lowered): topic -> type. The
+# node subscribes ackermann_cmd only where ackermann_msgs is installed.
 MESSAGE_COMMANDS = {"cmd_vel": "geometry_msgs/msg/Twist",
-                    "ackermann_cmd": "ackermann_msgs/msg/AckermannDriveStamped"}
+                    "ackermann_cmd": "ackermann_msgs/msg/AckermannDriveStamped",
+                    "implement_lowered": "std_msgs/msg/Bool"}
 
 # Bag only (the node records it, never publishes it): the steering command the node holds from
 # this tick on because its command watchdog took over (0.0 when a stale command is replaced by

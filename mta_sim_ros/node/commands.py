@@ -18,6 +18,9 @@ Four command sources, one rule (:class:`Setting`: what one received message sets
   speed = v of B_1 as for cmd_vel (V = v / cos psi_cmd), steering_angle_velocity = the rate
   limit of the steering actuator while this command holds (0 = the actuator's own).
 
+and one for the implement: ``implement_lowered`` (Bool): lowered (true, the scene's start) or
+lifted (false: the implement cart's draft off, run.simulation.Simulation.set_lowered).
+
 The latest accepted message of any source sets what it sets, and only that: a steering command
 (steering_angle, cmd_vel with v != 0, ackermann_cmd) sets psi_cmd together with its rate limit
 (the actuator's own for the first two), a speed command (speed_setpoint, cmd_vel, ackermann_cmd)
@@ -31,7 +34,7 @@ import math
 import time
 from typing import Callable
 
-from ..messages.decode import CommandDecodeError, decode_ackermann, decode_twist
+from ..messages.decode import CommandDecodeError, decode_ackermann, decode_bool, decode_twist
 
 #: Largest speed set-point the node accepts, m/s (either sign); beyond it the value is clamped.
 SPEED_LIMIT = 50.0
@@ -105,6 +108,7 @@ class Setting:
     speed: float | None = None
     problem: str = ""
     refused: bool = False
+    lowered: bool | None = None  # the implement lowered (implement_lowered)
 
 
 def _refused(topic: str, fields: dict[str, float]) -> Setting | None:
@@ -206,6 +210,7 @@ class HeldCommands:
         self.messages = {t: MessageInput(t) for t in message_types}
         self.wheelbase, self.actuator = scene.train.carts[0].length, scene.train.actuator
         self.rate_limit: float | None = None
+        self.lowered = True  # the implement (implement_lowered): lowered until commanded
 
     def take(self, topic: str, x: float) -> str:
         """A Float64 command received on ``topic`` (steering_angle, speed_setpoint): held if
@@ -223,6 +228,8 @@ class HeldCommands:
         try:
             if topic == "cmd_vel":
                 setting = twist_setting(*decode_twist(data), self.wheelbase, self.steering.high)
+            elif topic == "implement_lowered":
+                setting = Setting(lowered=decode_bool(data))
             else:
                 setting = ackermann_setting(*decode_ackermann(data), self.steering.high, self.actuator.max_rate)
         except CommandDecodeError as err:
@@ -231,10 +238,12 @@ class HeldCommands:
         if setting.steering is not None:
             self.steering.set(setting.steering)
             self.rate_limit = setting.rate
-        elif not setting.refused:  # cmd_vel at v = 0 holds the steering as it is: a fresh command for the watchdog
-            self.steering.set(self.steering.value)
+        elif not setting.refused and topic != "implement_lowered":  # cmd_vel at v = 0 holds the steering as it
+            self.steering.set(self.steering.value)  # is: a fresh command for the watchdog
         if setting.speed is not None:
             self.speed.set(setting.speed)
+        if setting.lowered is not None:
+            self.lowered = setting.lowered
         return setting.problem
 
     def restart(self, steering: float, speed: float) -> None:
@@ -244,6 +253,7 @@ class HeldCommands:
         for inp in self.messages.values():
             inp.last_problem = ""
         self.rate_limit = None
+        self.lowered = True
 
     def problems(self) -> list[str]:
         """What was wrong with the last command of each source ('' where nothing)."""

@@ -30,7 +30,10 @@ that answers each output with a command, as Gazebo's lockstep or CARLA's synchro
 1. the first firing runs tick 1 (with the commands held then: the scene's initial ones unless a
    command came before) and publishes its outputs;
 2. then the session waits: no tick runs until a command arrives on any command topic
-   (steering_angle, speed_setpoint, cmd_vel, ackermann_cmd; refused or not: it is an answer);
+   (steering_angle, speed_setpoint, cmd_vel, ackermann_cmd, implement_lowered; refused or not: it
+   is an answer); with ``answer`` topics (the parameter lockstep_answer) until a message has come
+   on each of them (a controller setting steering, speed and implement in three messages: each
+   sets its own, so the order they come in does not matter);
 3. the next firing after an answer runs exactly one tick, holding the latest commands (two
    answers before that firing still make one tick; the node fires at each answer, so one
    message answers one tick);
@@ -78,8 +81,8 @@ class Pace(Protocol):
         """One firing of the tick timer, the simulation at ``sim_time``: runs ``tick`` (which
         says whether it ticked) as often as the pacing allows now; returns how many ticked."""
 
-    def answer(self) -> None:
-        """A command arrived."""
+    def answer(self, topic: str = "") -> None:
+        """A command arrived on ``topic``."""
 
     def published(self, outputs: dict[str, bytes], sim_time: float) -> None:
         """A tick published ``outputs`` (topic -> CDR bytes) at ``sim_time``."""
@@ -140,7 +143,7 @@ class FreeRunning:
         self.caught_up += max(0, ran - 1)
         return ran
 
-    def answer(self) -> None:
+    def answer(self, topic: str = "") -> None:
         """Commands make no ticks: the wall clock does."""
 
     def published(self, outputs: dict[str, bytes], sim_time: float) -> None:
@@ -182,8 +185,10 @@ class Lockstep:
     caught_up = 0
 
     def __init__(self, tick: float, clock: Callable[[], float], publish: Callable[[dict], None], log,
-                 timeout: Callable[[], float], topics: list[str]):
+                 timeout: Callable[[], float], topics: list[str], answer: tuple[str, ...] = ()):
         self.clock, self.publish, self.log, self.timeout, self.topics = clock, publish, log, timeout, topics
+        self.parts = frozenset(answer)  # the topics one answer is made of (none: any one message)
+        self.missing: set[str] = set()
         self.wall = FreeRunning(tick, 0.0, clock)  # paces nothing at target 0; measures the real-time factor
         self.answered = True  # the next firing may tick (the first one does)
         self.published_at = self.republished_at = clock()
@@ -214,19 +219,25 @@ class Lockstep:
             self.log.warning(self.stall(sim_time))
         return 0
 
-    def answer(self) -> None:
-        self.answered = True
+    def answer(self, topic: str = "") -> None:
+        """A message on ``topic``: the answer, or with ``parts`` one of them (the answer once each
+        has come since the last outputs)."""
+        self.missing.discard(topic)
+        if not self.missing:
+            self.answered = True
 
     def published(self, outputs: dict[str, bytes], sim_time: float) -> None:
         """From now the tick waits for an answer to these outputs."""
         if self.stall_said:
             self.log.info(f"lockstep: answered; running again at t = {sim_time:.3f} s")
         self.answered, self.stall_said, self.last_outputs = False, False, outputs
+        self.missing = set(self.parts)
         self.published_at = self.republished_at = self.clock()
 
     def restart(self, sim_time: float) -> None:
         """Step 1 again."""
         self.answered, self.stall_said, self.last_outputs = True, False, {}
+        self.missing = set()
         self.wall.restart(sim_time)
 
     def pause(self, paused: bool, sim_time: float) -> None:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from .. import validate
 from ..integrate import METHODS
+from ..messages.topics import COMMAND_TOPICS, MESSAGE_COMMANDS
 
 
 def last_cpu() -> int:
@@ -20,6 +21,15 @@ def last_cpu() -> int:
         return max(os.sched_getaffinity(0))
     except (AttributeError, OSError, ValueError):  # not Linux
         return max(0, (os.cpu_count() or 1) - 1)
+
+
+#: the topics a lockstep answer may be made of (lockstep_answer)
+ANSWER_TOPICS = (*COMMAND_TOPICS, *MESSAGE_COMMANDS)
+
+
+def answer_topics(value: str) -> tuple[str, ...]:
+    """The topics of a lockstep_answer value ('' : none, each message answers)."""
+    return tuple(t.strip() for t in value.split(",")) if value.strip() else ()
 
 
 @dataclass(frozen=True)
@@ -67,6 +77,11 @@ PARAMS = (
     Param("lockstep", False, "advance one tick only when a controller has answered the last outputs with a "
           "command on any command topic (pacing.py: the protocol); real_time_factor and the watchdog do not "
           "apply", live=False),
+    Param("lockstep_answer", "", "lockstep: the command topics whose messages make one answer together, comma "
+          "separated (e.g. steering_angle,speed_setpoint,implement_lowered: a tick runs once each has a message "
+          "since the last one); '' = each command message is an answer", live=False, text=validate.Rule(
+              f"'' or command topics separated by commas, each one of {', '.join(ANSWER_TOPICS)}",
+              lambda v: v == "" or all(t in ANSWER_TOPICS for t in answer_topics(v)))),
     Param("lockstep_timeout", 5.0, "lockstep: wall s without an answer before the node says in the log and "
           "/diagnostics (WARN) which topics it waits on; it keeps waiting", live=True, low=0.01, high=3600.0),
 )

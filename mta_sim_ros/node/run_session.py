@@ -58,7 +58,7 @@ from ..run.simulation import Simulation
 from ..validate import InputError, show
 from .commands import HeldCommands
 from .pacing import FreeRunning, Lockstep, Pace
-from .params import BY_NAME, ConfigError, check_config, check_value
+from .params import BY_NAME, ConfigError, answer_topics, check_config, check_value
 from .recorder import RunRecorder
 from .runlog import run_metadata, tick_figures, tick_line
 from .status import Status, status
@@ -173,8 +173,13 @@ class RunSession:
         if not self.cfg["lockstep"]:
             return FreeRunning(self.sim.tick, self.cfg["real_time_factor"], self.clock)
         topics = [qualified(t, namespace) for t in (*COMMAND_TOPICS, *self.inputs.message_types)]
+        parts = answer_topics(self.cfg["lockstep_answer"])
+        unheard = [t for t in parts if t not in (*COMMAND_TOPICS, *self.inputs.message_types)]
+        if unheard:  # a type not installed here (ackermann_msgs): that answer would never be complete
+            raise ConfigError(f"parameter lockstep_answer: {unheard[0]} is not subscribed here (its message type "
+                              f"is not installed)")
         return Lockstep(self.sim.tick, self.clock, self.publish, self.log, lambda: self.cfg["lockstep_timeout"],
-                        topics)
+                        topics, parts)
 
     def _watchdog_timeout(self) -> float:
         """The watchdog's timeout: the parameter's, or 0 (never stale) in lockstep."""
@@ -252,6 +257,7 @@ class RunSession:
         if self.watchdog.update():
             self._record({WATCHDOG_TOPIC: self.messages.enc.float64(self.watchdog.command)})
         self.sim.set_rate_limit(self.inputs.rate_limit)
+        self.sim.set_lowered(self.inputs.lowered)
         try:
             self.sim.advance(self.watchdog.command, self.speed.value)
         except (ModelValidityError, IntegrationError) as err:
@@ -287,7 +293,7 @@ class RunSession:
         """A command received on ``topic`` (topics.COMMAND_TOPICS): recorded as received at the
         simulation time it arrived, then held if valid, clamped to its range, or refused."""
         self._record({topic: self.messages.enc.float64(x)})
-        self.pace.answer()
+        self.pace.answer(topic)
         self._warn(topic, self.inputs.take(topic, x))
 
     def command_message(self, topic: str, data: bytes) -> None:
@@ -295,7 +301,7 @@ class RunSession:
         as its CDR bytes: recorded as received at the simulation time it arrived, then what it
         sets (commands.twist_setting, ackermann_setting) is held, clamped, or it is refused."""
         self._record({topic: bytes(data)})
-        self.pace.answer()
+        self.pace.answer(topic)
         self._warn(topic, self.inputs.take_message(topic, data))
 
     def _warn(self, topic: str, problem: str) -> None:
@@ -433,6 +439,7 @@ class RunSession:
             "paused": self.paused,
             "bag": str(recorder.path) if recorder and recorder.recording else "",
             "lockstep": self.lockstep,
+            "implement_lowered": self.inputs.lowered,
         }
         for topic, inp in self.inputs.messages.items():
             values.update({f"{topic}_commands": inp.count, f"{topic}_rejected": inp.rejected,

@@ -12,6 +12,7 @@ is. ``run/fidelity.py`` chooses the level a scene needs.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -71,3 +72,13 @@ def make_level(name: str, train: Train, algorithm: int = 2) -> Level:
 
         return SlipModel(train, algorithm=algorithm)
     raise ValueError(f"fidelity: {name!r} must be one of {', '.join(LEVELS)}")
+
+
+def lifted(train: Train) -> Train:
+    """The train with its implement lifted: the implement cart's drafts taken off (the train
+    itself when it has no implement or no draft on it). A level of it is the second, constant
+    model a run switches to while the implement is lifted (run/simulation.py)."""
+    if train.implement is None or not any(d.cart == train.implement.cart for d in train.draft):
+        return train
+    cart = train.implement.cart
+    return dataclasses.replace(train, draft=tuple(d for d in train.draft if d.cart != cart))

@@ -22,7 +22,7 @@ from ..integrate.steppers import FIXED_METHODS, FixedStep, Held
 from ..physics import kernel
 from ..physics.dynamics import Model
 from ..physics.guards import ModelValidityError, check_state, fast_modes
-from ..physics.levels import Level, make_level
+from ..physics.levels import Level, lifted, make_level
 from ..physics.outputs import Outputs
 from ..physics.spec import Scene, Table
 from .fidelity import Choice, choose
@@ -130,6 +130,12 @@ class Simulation:
         self.choice: Choice = choose(scene, forced=fidelity)
         self.level = self.choice.level
         self.model: Level = make_level(self.level, scene.train, algorithm)
+        # the implement lowered (the train as given) or lifted (its draft off): two constant levels
+        # built once, the one held chosen per tick (set_lowered), as the rate limit is held
+        lift = lifted(scene.train)
+        self.levels = {True: self.model, False: self.model if lift is scene.train else make_level(self.level, lift,
+                                                                                                  algorithm)}
+        self.lowered = True
         integ = scene.integrator
         self.rtol, self.atol = integ.rtol, integ.atol
         if self.level == "slip":  # the scene's method and tolerances are for the no-slip levels
@@ -162,13 +168,7 @@ class Simulation:
         self._check_steps_per_tick()  # before the warning: a refused run says one thing
         if unstable:
             warnings.warn(unstable, RuntimeWarning, stacklevel=2)
-        # the right-hand side of the adaptive methods and of the slip level
-        if self.compiled is False:
-            P = self.model.P
-            self._rhs = lambda t, y, c, v, r: kernel.rhs_of.py_func(P, np.asarray(y, dtype=np.float64), float(c),
-                                                                    float(v), r)
-        else:
-            self._rhs = self.model.rhs
+        self._rhs = self._rhs_of(self.model)
         self.compile_time = 0.0
         self.reset()
         if self.compiled:  # compile (or load from numba's cache) now, not in the first tick
@@ -176,6 +176,14 @@ class Simulation:
             self._warm_up()
             self.compile_time = time.perf_counter() - t_c
             self.compiled_note += f", first call {self.compile_time:.3g} s"
+
+    def _rhs_of(self, model: Level):
+        """The right-hand side of the adaptive methods and of the slip level, for ``model``."""
+        if self.compiled is False:
+            P = model.P
+            return lambda t, y, c, v, r: kernel.rhs_of.py_func(P, np.asarray(y, dtype=np.float64), float(c), float(v),
+                                                               r)
+        return model.rhs
 
     def _check_steps_per_tick(self) -> None:
         """Refuse a tick of more than validate.MAX_STEPS_PER_TICK steps (a step given that short,
@@ -204,10 +212,20 @@ class Simulation:
         self.stepper = make_stepper(self.method, self.stepper_step, self.rtol, self.atol, self.split_kinks)
         self._kernel_ticks = self.compiled is not None and isinstance(self.stepper, FixedStep)
         self.ticks = 0
+        self.set_lowered(True)
         self.y = start_state(self.scene, self.model)
         self.command = self.scene.initial.steering
         self.v_set = speed_setpoint(self.scene, 0.0)
         self.rate_limit: float | None = None
+
+    def set_lowered(self, lowered: bool) -> None:
+        """Hold the implement lowered (True: the train as given, the scene's start) or lifted
+        (False: its draft off, physics.levels.lifted) from the next tick on: an input beside the
+        command, the set-point and the rate limit. The run switches between two levels built once;
+        neither is changed. A train without an implement has one level for both."""
+        self.lowered = bool(lowered)
+        self.model = self.levels[self.lowered]
+        self._rhs = self._rhs_of(self.model)
 
     @property
     def t(self) -> float:

@@ -12,7 +12,6 @@ route, or the route's end not reached in twice its planned time (plus ten minute
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from ...integrate.stability import resolved_step, stable_step
 from ...integrate.tableau import TABLEAUX
 from ...physics.dynamics import Model
 from ...physics.guards import ModelValidityError, check_state, fast_modes
+from ...physics.levels import lifted
 from ...physics.spec import Initial, Integrator, Scene, Table
 from ...run.simulation import kernel_path, start_state
 from . import loop
@@ -78,12 +78,6 @@ def planned_time(R: np.ndarray) -> float:
     """s the route takes at its set-points."""
     ds = np.diff(R[:, loop.R_S])
     return float(np.sum(ds / np.abs(R[:-1, loop.R_SPEED])))
-
-
-def lifted(train):
-    """The train with its implement lifted: the implement cart's drafts taken off."""
-    cart = train.implement.cart
-    return dataclasses.replace(train, draft=tuple(d for d in train.draft if d.cart != cart))
 
 
 def start_pose(train, route: Route) -> tuple[float, float, float]:
