@@ -14,6 +14,7 @@ import argparse
 import dataclasses
 import signal
 import sys
+import time
 
 import rclpy
 import rclpy.clock
@@ -156,8 +157,11 @@ def spin_until_done(make_node, ros_args: list[str]) -> int:
             executor.spin_once(timeout_sec=0.1)
         if hasattr(node, "finish"):
             node.finish()
+            deadline = time.monotonic() + getattr(node, "linger", 0.0)  # what it published last, delivered
+            while time.monotonic() < deadline and rclpy.ok():
+                executor.spin_once(timeout_sec=0.05)
     finally:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return getattr(node, "exit_code", 0)
