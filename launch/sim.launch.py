@@ -14,7 +14,10 @@ starts ``sim_node`` (package mta_sim_ros) with ``params_file`` in ``namespace`` 
 * ``driver:=maneuver``: ``mta maneuver`` plays the scene's steering table (``maneuver:=NAME``
   and ``maneuver_params:="k=v k=v"``: a named manoeuvre instead), then exits;
   ``driver:=follow``: ``mta follow``, the pure-pursuit example controller (``driver_args``: more
-  options of either command, e.g. ``driver_args:="--passes 2"``);
+  options of either command, e.g. ``driver_args:="--passes 2"``), or a field plan worked live
+  (``driver_args:="--field fieldwork/rectangle.yaml"``, the node's ``params_file`` the one
+  ``mta follow --field ... --write-scene DIR`` wrote: the train at the route's start, lockstep):
+  it publishes the plan, the field's boundary and the coverage, which RViz and Foxglove show;
 * ``rviz:=true``: RViz2 with config/rviz/mta.rviz (``rviz.launch.py``);
 * ``foxglove:=true``: foxglove_bridge on 127.0.0.1 (``foxglove.launch.py``).
 

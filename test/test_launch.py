@@ -195,7 +195,14 @@ RVIZ_PROPERTIES = {
                                        "Axes Radius"},
     "rviz_default_plugins/Odometry": {"Topic", "Filter size", "Position Tolerance", "Angle Tolerance", "Keep",
                                       "Shape", "Covariance"},
+    "rviz_default_plugins/Map": {"Topic", "Update Topic", "Alpha", "Color Scheme", "Draw Behind", "Resolution",
+                                 "Width", "Height", "Position", "Orientation", "Use Timestamp"},
+    "rviz_default_plugins/Path": {"Topic", "Filter size", "Line Style", "Line Width", "Color", "Alpha",
+                                  "Buffer Length", "Offset", "Pose Style", "Pose Color", "Pose Alpha"},
 }
+#: the topics of the field follower (mta follow --plan/--field: controllers/implement/field_node.py),
+#: not the simulator's: latched (reliable, transient local) as it publishes them
+FIELD_TOPICS = {"plan", "field_boundary", "coverage"}
 #: a topic property's fields (rviz_common ros_topic_display.hpp, properties/qos_profile_property.cpp)
 RVIZ_TOPIC = {"Value": None, "Depth": None, "History Policy": {"System Default", "Keep Last", "Keep All"},
               "Reliability Policy": {"System Default", "Reliable", "Best Effort"},
@@ -231,7 +238,11 @@ def test_rviz_config_is_rviz2_yaml_with_the_displays_of_the_train():
         unknown = set(d) - RVIZ_DISPLAY - RVIZ_PROPERTIES[d["Class"]]
         assert not unknown, f"{d['Name']}: no property {unknown} in {d['Class']}"
     topics = rviz_topics(config)
-    assert {t["Value"] for t in topics.values()} == {"robot_description", "markers", "hitch_poses", "odom"}
+    assert {t["Value"] for t in topics.values()} == {"robot_description", "markers", "hitch_poses", "odom",
+                                                     *FIELD_TOPICS}
+    for topic in topics.values():
+        if topic["Value"] in FIELD_TOPICS:
+            assert (topic["Durability Policy"], topic["Reliability Policy"]) == ("Transient Local", "Reliable")
     for name, topic in topics.items():
         assert set(topic) <= set(RVIZ_TOPIC), f"{name}: {set(topic) - set(RVIZ_TOPIC)}"
         for field, choices in RVIZ_TOPIC.items():
@@ -346,6 +357,7 @@ def test_views_name_the_running_nodes_topics_qos_and_frames(tmp_path, probe):
         poses = probe.subscribe("hitch_poses", PoseArray)
         config, layout = rviz_config(), foxglove_layout()
         wanted = {"/" + t["Value"] for t in rviz_topics(config).values()} | set(foxglove_topics(layout))
+        wanted -= {"/" + t for t in FIELD_TOPICS}  # the field follower's (test_follow_field.py hears them)
 
         def graph() -> set[str]:
             """The node's topics (published and subscribed); none while discovery has not found it."""
@@ -365,6 +377,8 @@ def test_views_name_the_running_nodes_topics_qos_and_frames(tmp_path, probe):
         assert description and odometry and poses, "no robot_description, odom or hitch_poses from the node"
 
         for name, topic in rviz_topics(config).items():
+            if topic["Value"] in FIELD_TOPICS:
+                continue
             mine = [i for i in probe.node.get_publishers_info_by_topic("/" + topic["Value"]) if i.node_name == NODE]
             assert mine, f"{name}: the node publishes no {topic['Value']}"
             qos = mine[0].qos_profile
