@@ -35,6 +35,7 @@ Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /
     subscribes  steering_angle, speed_setpoint            std_msgs/Float64 (rad, m/s)
                 cmd_vel                                   geometry_msgs/Twist
                 ackermann_cmd                             ackermann_msgs/AckermannDriveStamped
+                implement_lowered                         std_msgs/Bool (lowered or lifted)
     publishes   hitch_poses, cart_velocities, traction_power, applied_steering (see topics.py),
                 markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz),
                 /tf, /tf_static, joint_states, odom, robot_description (topics.FRAME_TOPICS)
