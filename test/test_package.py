@@ -41,7 +41,10 @@ _ROSDEP_KEYS = {
     'scipy': 'python3-scipy',
     'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib',
-    'numba': 'python3-numba',  # model/compiled.py (optional at run time; also in requirements.txt)
+    'numba': 'python3-numba',  # physics/kernel/ (optional at run time; also in requirements.txt)
+    # mta field: the field's geometry and its projection (rosdistro's keys)
+    'shapely': 'python3-shapely',
+    'pyproj': 'python3-pyproj',
     # mta sweep: rosdistro's keys, and pip keys of the package's own rosdep source (rosdep/mta_sim_ros.yaml)
     'sympy': 'python3-sympy',
     'pandas': 'python3-pandas',
