@@ -1,4 +1,4 @@
-"""``python -m benchmarks NAME [options]``: run one benchmark (see __init__.py for the list).
+"""``python -m benchmarks NAME [options]``: run one benchmark (registry.py lists them).
 
 Faults of an argument are one line and exit code 2, as for ``mta`` (cli.Parser)."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ import sys
 
 from mta_sim_ros.cli import Parser
 
-from . import MODULES
+from .registry import MODULES
 
 
 def build_parser() -> argparse.ArgumentParser:

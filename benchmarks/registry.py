@@ -28,6 +28,9 @@ Shared: common.py (report header and writing, scene paths, child processes' envi
 side by side), runs.py (node-mode runs of a scene with held inputs, hitch points, errors against a
 reference), stages.py (the node's tick profile). Every process started here that talks DDS gets
 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a domain of its own.
+
+``benchmarks`` is a namespace package (no __init__.py): the folder is not installed, and a tool that
+looks for the one folder of the repository with an __init__.py finds the package, mta_sim_ros.
 """
 from __future__ import annotations
 
