@@ -406,6 +406,22 @@ def read_text(path: str | os.PathLike, error: type[InputError] = InputError) -> 
     return text
 
 
+def read_limited(path: str | os.PathLike, limit: int, what: str, error: type[InputError] = InputError) -> bytes:
+    """The bytes of a file of at most ``limit`` bytes (never reading more than that, whatever its
+    size); a fault names the file and says it is ``what`` that was wanted ("a GeoJSON field file")."""
+    source = str(path)
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(limit + 1)
+    except FileNotFoundError:
+        fail("file", "not found", f"an existing {what}", "document", source, error)
+    except (OSError, ValueError) as err:
+        fail("file", f"unreadable ({err})", f"a readable {what}", "document", source, error)
+    if len(data) > limit:
+        fail("file", f"more than {limit} bytes", f"at most {limit} bytes", "document", source, error)
+    return data
+
+
 def read_mapping(path: str | os.PathLike, error: type[InputError] = InputError) -> dict:
     """The top-level mapping of a YAML file (see parse_mapping)."""
     return parse_mapping(read_text(path, error), str(path), error)

@@ -273,15 +273,7 @@ def _polygon_of(doc: object, source: str) -> tuple[dict, dict]:
 
 def _read_json(path) -> object:
     source = str(path)
-    try:
-        with open(path, "rb") as stream:
-            data = stream.read(MAX_FILE_BYTES + 1)
-    except FileNotFoundError:
-        _fail("file", "not found", "an existing field file", "document", source)
-    except (OSError, ValueError) as err:
-        _fail("file", f"unreadable ({err})", "a readable UTF-8 GeoJSON file", "document", source)
-    if len(data) > MAX_FILE_BYTES:
-        _fail("file", f"more than {MAX_FILE_BYTES} bytes", f"at most {MAX_FILE_BYTES} bytes", "document", source)
+    data = validate.read_limited(path, MAX_FILE_BYTES, "UTF-8 GeoJSON field file", FieldError)
 
     def refuse(constant):  # JSON has no NaN or Infinity; Python's reader would take them
         _fail("coordinates", constant, "finite (JSON numbers)", "document", source)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from .. import validate
 from ..validate import fail, show
 from .boundary import LOCAL, MAX_EXTENT, MAX_LOCAL, FieldError
 from .plan import MAX_ROUTE_VERTICES
@@ -68,15 +69,7 @@ def read_route(path, field=None) -> ReadRoute:
 
 def _read_text(path) -> str:
     source = str(path)
-    try:
-        with open(path, "rb") as stream:
-            data = stream.read(MAX_ROUTE_BYTES + 1)
-    except FileNotFoundError:
-        _fail("file", "not found", "an existing route file", source, "document")
-    except OSError as err:
-        _fail("file", f"unreadable ({err.strerror or err})", "a readable route file", source, "document")
-    if len(data) > MAX_ROUTE_BYTES:
-        _fail("file", f"more than {MAX_ROUTE_BYTES} bytes", f"at most {MAX_ROUTE_BYTES} bytes", source, "document")
+    data = validate.read_limited(path, MAX_ROUTE_BYTES, "route file", FieldError)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as err:
