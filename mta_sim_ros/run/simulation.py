@@ -130,11 +130,10 @@ class Simulation:
         self.choice: Choice = choose(scene, forced=fidelity)
         self.level = self.choice.level
         self.model: Level = make_level(self.level, scene.train, algorithm)
-        # the implement lowered (the train as given) or lifted (its draft off): two constant levels
-        # built once, the one held chosen per tick (set_lowered), as the rate limit is held
-        lift = lifted(scene.train)
-        self.levels = {True: self.model, False: self.model if lift is scene.train else make_level(self.level, lift,
-                                                                                                  algorithm)}
+        # the implement lowered (the train as given) or lifted (its draft off): two constant levels,
+        # each built once, the one held chosen per tick (set_lowered), as the rate limit is held
+        self._algorithm = algorithm
+        self.levels = {True: self.model}  # the lifted level is built when first held (set_lowered)
         self.lowered = True
         integ = scene.integrator
         self.rtol, self.atol = integ.rtol, integ.atol
@@ -223,8 +222,15 @@ class Simulation:
         (False: its draft off, physics.levels.lifted) from the next tick on: an input beside the
         command, the set-point and the rate limit. The run switches between two levels built once;
         neither is changed. A train without an implement has one level for both."""
-        self.lowered = bool(lowered)
-        self.model = self.levels[self.lowered]
+        lowered = bool(lowered)
+        if lowered == self.lowered and self.model is self.levels[lowered]:
+            return  # held as it was: nothing to do on the tick's path
+        if lowered not in self.levels:
+            lift = lifted(self.scene.train)
+            self.levels[False] = self.levels[True] if lift is self.scene.train else make_level(
+                self.level, lift, self._algorithm)
+        self.lowered = lowered
+        self.model = self.levels[lowered]
         self._rhs = self._rhs_of(self.model)
 
     @property
