@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
@@ -223,16 +224,19 @@ def test_replay_over_dds_keeps_order_data_and_timing(run_bag, tmp_path, probe):
         assert len(got[topic]) == len(recorded[topic]), topic
     assert [m.data for _, m in got["/traction_power"]] == [m.data for _, m in recorded["/traction_power"]]
     assert [stamp_ns(m) for _, m in got["/clock"]] == [lt for lt, _ in recorded["/clock"]]
-    # timing: the wall span between the first and the last /clock is the bag's span / rate. The
-    # schedule is fixed at the start instant, so messages never go early: the span is at least
-    # bag_span / 2 minus the first message's extra delivery latency (< 0.1 s); late ones only
-    # lengthen it, by at most a scheduler hiccup on a loaded machine (< 0.4 s)
-    arrivals = [a for a, _ in got["/clock"]]
-    wall_span = arrivals[-1] - arrivals[0]
-    assert bag_span / 2 - 0.1 < wall_span < bag_span / 2 + 0.4, wall_span
-    # and evenly: the first half of the bag took the first half of the time (no drift)
-    half = arrivals[len(arrivals) // 2] - arrivals[0]
-    assert abs(half - wall_span / 2) < 0.2, (half, wall_span)
+    # timing: every /clock arrives on one schedule of the bag's log times / rate. The player
+    # fixes the schedule at its start instant, so each message's arrival minus its scheduled
+    # offset is that instant plus its own delivery delay: over all messages these differ by the
+    # delays' spread, a scheduler hiccup on a loaded machine at most (< 0.4 s), where a player at
+    # another rate, or drifting, would spread them by seconds over the 4 s bag. The first message
+    # is left out of the spread (DDS may deliver it late while the match settles: a run of CI saw
+    # it 0.33 s late); it still counts for the data and the order above.
+    arrivals = np.array([a for a, _ in got["/clock"]])
+    scheduled = (np.array([lt for lt, _ in recorded["/clock"]]) - recorded["/clock"][0][0]) / 1e9 / 2.0
+    lag = (arrivals - scheduled)[1:]  # the first: see above
+    assert lag.max() - lag.min() < 0.4, (lag.min(), lag.max())
+    assert np.polyfit(scheduled, arrivals, 1)[0] == pytest.approx(1.0, abs=0.05)  # the rate: 2 x real time
+    assert bag_span == pytest.approx(4.0, abs=0.1)
 
 
 @pytest.mark.dds
