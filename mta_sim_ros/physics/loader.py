@@ -233,7 +233,7 @@ def _integrator(top: Section, publish_rate: float) -> spec.Integrator:
     return spec.Integrator(
         method=INTEGRATOR["method"].read(s),
         step=INTEGRATOR["step"].read(s, validate.step_rule(publish_rate)),
-        **INTEGRATOR.read(s, "rtol", "atol", "split_kinks"),
+        **INTEGRATOR.read(s, "rtol", "atol", "split_kinks", "tolerance"),
     )
 
 
@@ -319,7 +319,7 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.
     return spec.Scene(
         name=_name(top, source),
         train=train,
-        duration=_duration(top, publish_rate, integrator.step),
+        duration=_duration(top, publish_rate, integrator.step or 1.0 / publish_rate),
         initial=initial,
         steering=steering,
         speed=speed,

@@ -310,7 +310,12 @@ INTEGRATOR = Schema("Integrator", "integrator", "How the equations of motion are
     Field("method", CHOICE, "the fixed-step tableaux of integrate/tableau.py, then scipy's adaptive ones",
           choices=spec.INTEGRATOR_METHODS, default=_INTEGRATOR.method),
     Field("step", NUMBER, "the step of a fixed-step method (the largest step of an adaptive one)", "s", None,
-          _INTEGRATOR.step, rule_text=f"in [1/publish_rate / {validate.MAX_STEPS_PER_TICK}, 1/publish_rate] s"),
+          _INTEGRATOR.step, rule_text=f"in [1/publish_rate / {validate.MAX_STEPS_PER_TICK}, 1/publish_rate] s",
+          default_text="a fixed-step method takes the fewest equal steps per tick that meet tolerance; an adaptive "
+                       "one steps up to the tick"),
+    Field("tolerance", NUMBER, "the largest position error the run may have (every A_k, B_k and the last rear "
+          "hitch, against the exact solution): a run states its estimate against it (docs/accuracy.md)", "m",
+          POSITIVE, _INTEGRATOR.tolerance),
     Field("rtol", NUMBER, "relative tolerance of the adaptive methods", "", TOLERANCE, _INTEGRATOR.rtol),
     Field("atol", NUMBER, "absolute tolerance of the adaptive methods", "", TOLERANCE, _INTEGRATOR.atol),
     Field("split_kinks", FLAG, "split the steps where the right-hand side has a kink (the steering rate limit "

@@ -173,12 +173,17 @@ INTEGRATOR_METHODS = ("euler", "heun", "ralston", "kutta3", "rk4", "rk38", "RK45
 @dataclass(frozen=True)
 class Integrator:
     method: str = "rk4"  # one of INTEGRATOR_METHODS
-    step: float = 0.01  # s, fixed-step methods (the largest step for adaptive ones)
+    # s, fixed-step methods (the largest step for adaptive ones); None: a fixed-step method takes
+    # the fewest equal steps per tick that meet ``tolerance``, an adaptive one steps up to the tick
+    step: Optional[float] = None
     rtol: float = 1e-8  # adaptive methods
     atol: float = 1e-10  # adaptive methods
     # split steps where the right-hand side has a kink (the steering rate limit letting go, a force
     # limit engaging): each method keeps its order there (integrate/steppers.py)
     split_kinks: bool = True
+    # m: the largest position error the run may have (run/accuracy.py); every run states its own
+    # estimate against it, and a fixed-step run given no step takes the fewest steps that meet it
+    tolerance: float = 1e-6
 
 
 FIDELITY_LEVELS = ("kinematic", "dynamic", "slip")  # cheapest first; see fidelity.py

@@ -144,11 +144,11 @@ class Simulation:
             if method is None:
                 method, step = slip.DEFAULT_METHOD, step or 1.0 / (rate or scene.publish_rate)
         self.method = method or integ.method
-        self.step = step or integ.step
         self.split_kinks = integ.split_kinks if split_kinks is None else bool(split_kinks)
-        make_stepper(self.method, self.step, self.rtol, self.atol)  # a bad method fails here, not at reset
         self.tick = 1.0 / (rate or scene.publish_rate)
         self.compiled, self.compiled_note = kernel_path(self.model, compiled)
+        self.step = step or integ.step or self._step_for_tolerance(rate, algorithm, compiled)
+        make_stepper(self.method, self.step, self.rtol, self.atol)  # a bad method fails here, not at reset
         # with kinks split, a kernel model's fixed-step tick takes the actuator in closed form
         # (rk.rk_step): its fast mode then limits neither stability nor accuracy, but the step
         # must resolve its time constant (stability.resolved_step)
@@ -175,6 +175,17 @@ class Simulation:
             self._warm_up()
             self.compile_time = time.perf_counter() - t_c
             self.compiled_note += f", first call {self.compile_time:.3g} s"
+
+    def _step_for_tolerance(self, rate, algorithm, compiled) -> float:
+        """A scene that gives no step: for a fixed-step method on a kernel model, the step that meets
+        its tolerance (accuracy.chosen_step: a few whole runs of the scene's own inputs); else the
+        tick (an adaptive method's largest step)."""
+        if self.method not in FIXED_METHODS or self.compiled is None:
+            return self.tick
+        from .accuracy import chosen_step
+
+        return chosen_step(self.scene, method=self.method, rate=rate, algorithm=algorithm, fidelity=self.level,
+                           compiled=compiled, split_kinks=self.split_kinks)
 
     def _rhs_of(self, model: Level):
         """The right-hand side of the adaptive methods and of the slip level, for ``model``."""

@@ -1,0 +1,142 @@
+"""How accurate a run is: its estimated position error, and the step that meets a tolerance. No ROS.
+
+The error of a run is the largest distance, over its ticks, between a point of the train as run
+and the same point of the exact solution under the same held inputs: every hitch point A_k, axle
+centre B_k and the last cart's rear hitch (``points``), in metres.
+
+It is estimated from a companion run of the same scene (``companion``):
+- a fixed-step method of order p: the same run at half the step (step halving). Where the error
+  is C h^p, the run's error is E = D 2^p / (2^p - 1), D the largest distance between the two
+  runs' points (Richardson);
+- an adaptive method: the same run at a thousandth of its tolerances rtol, atol; its error is then
+  far below the run's, and E = D.
+The estimate stated is SAFETY x E: the tests hold it at or above the true error (against a DOP853
+reference at 1e-12) and at most 10 times above it, on the shipped scenes and on random trains
+(test/test_accuracy.py).
+
+A scene without a step asks for a tolerance instead (``integrator.tolerance``, 1e-6 m unless set):
+``settle`` then takes the fewest equal steps per tick whose estimate meets it (from one step a tick,
+predicting the count from the estimate's order, at most ``ATTEMPTS`` tries).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..integrate.steppers import FIXED_METHODS
+from ..integrate.tableau import TABLEAUX
+from ..validate import MAX_RUN_STEPS, MAX_STEPS_PER_TICK, steps_per_tick
+from . import whole
+
+#: the estimate stated is this many times the Richardson (or tight-companion) figure
+SAFETY = 2.0
+#: an adaptive method's companion runs at its tolerances over this
+TIGHTER = 1000.0
+#: at most this many step counts tried to meet a tolerance
+ATTEMPTS = 5
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """What a run states about its accuracy."""
+
+    error: float  # m, the estimated largest position error (``points``) over the run
+    tolerance: float  # m, what the scene asked for
+    method: str
+    step: float  # s, the step the run took (the largest, for an adaptive method)
+    how: str  # how the estimate was made
+
+    @property
+    def meets(self) -> bool:
+        return self.error <= self.tolerance
+
+    def line(self) -> str:
+        verdict = "within" if self.meets else "OVER"
+        return (f"estimated position error {self.error:.2g} m, {verdict} the tolerance {self.tolerance:g} m "
+                f"({self.method}, step {self.step:.4g} s; {self.how})")
+
+    def metadata(self) -> dict[str, str]:
+        """The bag's metadata fields."""
+        return {"position_error_m": repr(self.error), "tolerance_m": repr(self.tolerance),
+                "error_estimate": self.how}
+
+
+def points(train, trace: np.ndarray) -> np.ndarray:
+    """(rows, 2n + 1, 2): A_k and B_k of every cart and the last rear hitch, from a run's trace."""
+    n = train.n
+    cart = trace[:, whole.TRACE_HEAD:].reshape(trace.shape[0], n, whole.TRACE_CART)
+    bx, by, th = cart[:, :, whole.TR_BX], cart[:, :, whole.TR_BY], cart[:, :, whole.TR_HEADING]
+    ex, ey = np.cos(th), np.sin(th)
+    length = np.array([c.length for c in train.carts])
+    ax, ay = bx + length * ex, by + length * ey
+    offset = train.carts[-1].hitch_offset
+    rear = np.stack([bx[:, -1] - offset * ex[:, -1], by[:, -1] - offset * ey[:, -1]], axis=1)
+    return np.concatenate([np.stack([ax, ay], axis=2), np.stack([bx, by], axis=2), rear[:, None, :]], axis=1)
+
+
+def distance(train, a: np.ndarray, b: np.ndarray) -> float:
+    """The largest distance between the same point of two traces, over the rows both ran."""
+    rows = min(a.shape[0], b.shape[0])
+    d = np.linalg.norm(points(train, a[:rows]) - points(train, b[:rows]), axis=2)
+    d = d[np.isfinite(d)]
+    return float(d.max()) if d.size else 0.0
+
+
+def companion(sim, options: dict) -> tuple[dict, float, str]:
+    """(options of the companion run, the factor from the two runs' distance to the run's error,
+    how the estimate is made) for a run set up as ``sim``."""
+    if sim.method in FIXED_METHODS:
+        p = TABLEAUX[sim.method].order
+        half = dict(options, method=sim.method, step=sim.stepper_step / 2.0)
+        return half, 2.0 ** p / (2.0 ** p - 1.0), f"step halving, order {p}"
+    tight = dataclasses.replace(sim.scene.integrator, rtol=sim.rtol / TIGHTER, atol=sim.atol / TIGHTER)
+    return dict(options, method=sim.method, scene_integrator=tight), 1.0, f"rtol, atol / {TIGHTER:g}"
+
+
+def estimate(scene, run, **options) -> Accuracy:
+    """The accuracy of ``run`` = batch.run_trace(scene, **options) (its companion is run here)."""
+    from .batch import run_trace
+
+    sim, trace = run[0], run[1]
+    extra, factor, how = companion(sim, options)
+    tight = extra.pop("scene_integrator", None)
+    other = dataclasses.replace(scene, integrator=tight) if tight is not None else scene
+    second = run_trace(other, **extra)[1]
+    error = SAFETY * factor * distance(scene.train, trace, second)
+    return Accuracy(error, scene.integrator.tolerance, sim.method, sim.stepper_step, how)
+
+
+def settle(scene, **options):
+    """(the run = batch.run_trace(scene, step=..., **options), its Accuracy). With a step (given
+    in ``options`` or by the scene) or an adaptive method: that run and its estimate. Else the
+    fewest steps per tick whose estimate meets the scene's tolerance (module docstring); when no
+    count of at most validate.MAX_STEPS_PER_TICK does, the finest tried, its estimate saying so."""
+    from .batch import run_trace
+
+    method = options.get("method") or scene.integrator.method
+    if options.get("step") or scene.integrator.step or method not in FIXED_METHODS:
+        run = run_trace(scene, **options)
+        return run, estimate(scene, run, **options)
+    tick = 1.0 / (options.get("rate") or scene.publish_rate)
+    count, order = 1, TABLEAUX[method].order
+    ticks = math.floor(scene.duration / tick + 1e-9)
+    most = max(1, min(MAX_STEPS_PER_TICK, MAX_RUN_STEPS // max(1, ticks)))  # validate.step_count's limit
+    for _ in range(ATTEMPTS):
+        run = run_trace(scene, **dict(options, step=tick / count))
+        accuracy = estimate(scene, run, **dict(options, step=tick / count))
+        done = steps_per_tick(tick, run[0].stepper_step)  # the stepper may take more (stability)
+        if accuracy.meets or done >= most:
+            break
+        grow = (accuracy.error / accuracy.tolerance) ** (1.0 / order) * 1.2
+        count = min(most, max(done + 1, math.ceil(done * grow)))
+        if count <= done:  # the run's size allows no more steps
+            break
+    return run, accuracy
+
+
+def chosen_step(scene, **options) -> float:
+    """The step ``settle`` takes for ``scene`` (s)."""
+    return settle(scene, **options)[0][0].stepper_step
