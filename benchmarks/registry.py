@@ -9,6 +9,7 @@ accuracy/     error against cost
   stability       where every method's steps stop being accurate, and where they blow up
   kinks           every method across the right-hand side's kinks, split and not
   fidelity        each fidelity level's error against slip and its cost
+  estimate        each run's stated position error against the true one; what asking for a tolerance costs
 throughput/   how much is done in a second
   scaling         the node's tick against carts and publish rate, long runs, memory (scaling_report.py
                   writes its report)
@@ -38,7 +39,7 @@ from __future__ import annotations
 #: each has HELP, add_arguments(parser) and main(args)
 MODULES = {
     "method": "accuracy.method", "work_precision": "accuracy.work_precision", "stability": "accuracy.stability",
-    "kinks": "accuracy.kinks", "fidelity": "accuracy.fidelity",
+    "kinks": "accuracy.kinks", "fidelity": "accuracy.fidelity", "estimate": "accuracy.estimate",
     "scaling": "throughput.scaling", "tick_parts": "throughput.tick_parts", "sweep": "throughput.sweep",
     "field": "throughput.field",
     "realtime": "node.realtime", "sigkill": "node.sigkill", "flood": "node.flood",

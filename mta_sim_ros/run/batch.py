@@ -32,6 +32,9 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
                                               the scene steers (NaN: it never steers)
     drawbar pull at A_k                       mean and largest, the model's constraint force
                                               along cart k (kernel.drawbar_pulls)
+    position error                            the run's estimated largest position error
+                                              (accuracy.settle: a companion run; with no step
+                                              the scene's tolerance chose the step)
 """
 from __future__ import annotations
 
@@ -47,6 +50,7 @@ from ..physics import kernel
 from ..physics.outline import box_of, cart_widths
 from ..physics.guards import ModelValidityError, check_state
 from . import offsets, whole
+from .accuracy import settle
 from .simulation import Simulation, speed_setpoints, table_values
 
 #: the verdicts of a run
@@ -133,9 +137,10 @@ def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Except
 def run_metrics(scene, **options) -> RunResult:
     """Run ``scene`` to its end (or to the guard that stops it) and measure it (module docstring).
     ``options`` as for ``Simulation``. Input faults (a bad scene, a step refused) raise as there."""
-    sim, trace, commands, done, err = run_trace(scene, **options)
+    (sim, trace, commands, done, err), stated = settle(scene, **options)
     used = trace[: done + 1]
     result = metrics(scene.train, used, sim.tick, commands[:done])
+    result["position_error_m"] = stated.error
     if err is None:
         return RunResult(result, OK, "", sim.t, sim.level, used)
     return RunResult(result, STOPPED, str(err), sim.t, sim.level, used)
@@ -145,7 +150,7 @@ def metric_names(n: int) -> list[str]:
     """The metric columns of a train of n carts, in order."""
     names = ["energy_kWh", "mean_power_kW", "peak_power_kW", "worked_area_ha", "energy_per_ha_kWh",
              "max_hitch_angle_deg", "min_jackknife_margin_deg", "max_offtracking_m", "swept_width_m",
-             "headland_width_m", "distance_m"]
+             "headland_width_m", "distance_m", "position_error_m"]
     for k in range(2, n + 1):
         names += [f"hitch{k}_max_angle_deg", f"hitch{k}_mean_pull_kN", f"hitch{k}_max_pull_kN",
                   f"cart{k}_offtracking_m"]
@@ -215,7 +220,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         offtracks += [off] if math.isfinite(off) else []
     out["max_hitch_angle_deg"] = largest_angle if n > 1 else math.nan
     out["max_offtracking_m"] = max(offtracks, default=math.nan)  # NaN: no axle was ever beside the path
-    return {name: out[name] for name in metric_names(n)}
+    return {name: out.get(name, math.nan) for name in metric_names(n)}  # position_error_m: run_metrics
 
 
 def kernel_compiled() -> bool:

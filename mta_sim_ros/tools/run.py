@@ -27,6 +27,7 @@ from ..messages.urdf import robot_model
 from ..physics.loader import load_scene
 from ..physics.spec import INTEGRATOR_METHODS
 from ..run.fidelity import LEVELS, choose
+from ..run.accuracy import settle
 from ..run.simulation import run_scene
 from ..run.summary import RunSummary
 from ..validate import (
@@ -131,7 +132,7 @@ def run_options(args: argparse.Namespace, scene, choice) -> dict:
     problem = tick_count(scene.duration, rate)  # the scene's own is checked by the loader
     if problem:
         fail("--rate", show(args.rate), f"{problem} for the duration {scene.duration:g} s of {scene.source}")
-    problem = step_count(scene.duration, rate, step)
+    problem = step_count(scene.duration, rate, step or 1.0 / rate)  # no step: the tolerance's (accuracy.settle)
     if problem:
         fail("--step" if args.step else "--rate", show(args.step or args.rate), problem)
     split_kinks = getattr(args, "split_kinks", None)
@@ -168,14 +169,19 @@ def main(args: argparse.Namespace) -> int:
     except ValueError as err:  # SpecError, InputError, a fidelity level the scene cannot run
         print(f"mta run: {err}", file=sys.stderr)
         return EXIT_INPUT
+    try:
+        stated = settle_step(args, scene, options)
+    except ValueError as err:  # the simulation refuses its options (validate.MAX_STEPS_PER_TICK, ...)
+        print(f"mta run: {err}", file=sys.stderr)
+        return EXIT_INPUT
     tmp_bag = partial(bag_path)
     try:
-        result = simulate(args, scene, choice, options, tmp_bag, robot)
+        result = simulate(args, scene, choice, options, tmp_bag, robot, stated)
         if isinstance(result, int):
             return result
         sim, stopped, summary, wall = result
         text = summary.markdown(f"Run of scene '{scene.name}' ({scene.source})",
-                                report_extra(sim, choice, summary, wall, bag_path, stopped))
+                                report_extra(sim, choice, summary, wall, bag_path, stopped, stated))
         os.replace(tmp_bag, bag_path)
     finally:
         tmp_bag.unlink(missing_ok=True)
@@ -189,7 +195,16 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: Path, robot):
+def settle_step(args: argparse.Namespace, scene, options: dict):
+    """The run's accuracy (run/accuracy.py: a companion run states its position error), and with
+    no step given the step that meets the scene's tolerance, set into ``options``."""
+    run, stated = settle(scene, method=args.method, step=args.step, rate=args.rate, fidelity=options["fidelity"],
+                         split_kinks=options["split_kinks"])
+    options["step"] = run[0].step
+    return stated
+
+
+def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: Path, robot, stated):
     """Run the scene into the bag at ``bag_path``: (sim, what stopped it or None, summary, wall
     seconds), or an exit code after saying what went wrong in one line. ``robot``: the train's
     robot model (urdf.Robot), whose frames the bag holds as the node's does (/tf, /tf_static,
@@ -200,7 +215,8 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
     progress = Progress(scene.duration)
     started = time.perf_counter()
     try:
-        with BagWriter(str(bag_path), metadata={"mta_sim_ros": run_metadata(scene, options)}) as bag:
+        metadata = {**run_metadata(scene, options), **stated.metadata()}
+        with BagWriter(str(bag_path), metadata={"mta_sim_ros": metadata}) as bag:
             for topic, type_name in TOPICS.items():
                 bag.add_topic(qualified(topic), type_name)
             for topic, type_name in FRAME_TOPICS.items():
@@ -223,7 +239,7 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
                 summary.add(out)
                 progress.update(out.t)
 
-            sim, stopped = run_scene(scene, on_output=record, method=args.method, step=args.step, rate=args.rate,
+            sim, stopped = run_scene(scene, on_output=record, method=args.method, step=options["step"], rate=args.rate,
                                      fidelity=choice.level, split_kinks=options["split_kinks"])
     except (BagError, OSError) as err:
         progress.close()
@@ -237,10 +253,11 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
     return sim, stopped, summary, time.perf_counter() - started
 
 
-def report_extra(sim, choice, summary, wall: float, bag_path: Path, stopped) -> dict[str, str]:
+def report_extra(sim, choice, summary, wall: float, bag_path: Path, stopped, stated) -> dict[str, str]:
     """The report's lines about the run beyond the summary's figures."""
     extra = {
         "fidelity": choice.reason,
+        "accuracy": stated.line(),
         "integrator": f"{sim.method}, step {sim.step:g} s, tick {sim.tick:g} s, {sim.stepper.nfev} RHS evaluations, "
                       f"{sim.kinks} kinks split at; {sim.compiled_note}",
         "wall time": f"{wall:.2f} s (x{summary.duration / wall:.0f} real time)" if wall > 0 else "",
