@@ -10,6 +10,9 @@ model/kernel.py ``advance``), and each method keeps its order.
   order when splitting and not when stepping across; the default (rk4, 0.01 s) is within 1e-6 m;
   the adaptive methods' error control no longer accepts steps across a kink.
 - Where no kink is met, splitting changes nothing, to the last bit.
+- A release within 1e-15 s of a tick's start or end (before, on, after either): every method takes
+  the tick on the branch the actuator is on, against the actuator's own solution and a reference
+  that does not split (issue 21).
 """
 from __future__ import annotations
 
@@ -206,3 +209,129 @@ def test_the_steering_is_the_actuators_closed_form():
         sim.advance(command, v_set)
         worst = max(worst, abs(sim.y[i] - exact))
     assert worst < 1e-11, worst
+
+
+# -- a release on a tick's boundary ---------------------------------------------------------------------
+# The actuator's rate limit letting go within round-off of a tick's start or end: every method must
+# take the tick on the branch the actuator is on for all of it but that round-off (issue 21).
+
+EDGE_RATE = 10  # Hz: a tick of 0.1 s, ten of the scene's 10 ms steps, so that a missed release shows
+EDGE_COMMAND = 0.4  # rad, inside max_angle: the actuator turns left towards it
+EDGE_TOL = 1e-12  # the adaptive methods' rtol = atol here
+#: where the release falls, as (tick's end: 0 start, 1 end, offset s)
+EDGES = {"start-1e-15": (0, -1e-15), "start": (0, 0.0), "start+1e-15": (0, 1e-15),
+         "end-1e-15": (1, -1e-15), "end": (1, 0.0), "end+1e-15": (1, 1e-15)}
+ADAPTIVE = ["RK45", "DOP853", "LSODA", "BDF", "Radau"]
+
+
+def edge_sim(method, tol=EDGE_TOL, **options):
+    scene = with_tolerance(kinks_scene(duration=1.0), tol)
+    return Simulation(scene, fidelity="dynamic", method=method, rate=EDGE_RATE, **options)
+
+
+def edge_state(sim, edge):
+    """The scene's start with psi_1 set so that, with EDGE_COMMAND held, the rate limit lets go
+    at ``edge`` (EDGES) from the tick's start (before it: not rate-limited at the start): the
+    limited actuator moves at max_rate until target - psi_1 = tau max_rate."""
+    act = sim.scene.train.actuator
+    end, offset = EDGES[edge]
+    release = end * sim.tick + offset
+    y = sim.y.copy()
+    y[sim.model.layout.steering] = EDGE_COMMAND - act.max_rate * (act.time_constant + release)
+    return y, release
+
+
+def edge_tick(sim, y):
+    """One tick from y holding EDGE_COMMAND and the scene's set-point: (psi_1, the hitch points)."""
+    sim.y = y.copy()
+    sim.advance(EDGE_COMMAND, sim.scheduled_inputs(sim.t)[1])
+    out = sim.outputs()
+    return sim.y[sim.model.layout.steering], np.vstack([out.front, out.rear_hitch[None]])
+
+
+def exact_steering(act, psi0, tick):
+    """psi_1 after the tick: psi_1' = actuator law (test/laws.py) alone, DOP853 at rtol 1e-12."""
+    from scipy.integrate import solve_ivp
+
+    return solve_ivp(lambda t, p: [steering_rate(act, p[0], EDGE_COMMAND)], (0.0, tick), [psi0],
+                     method="DOP853", rtol=1e-12, atol=1e-14).y[0, -1]
+
+
+def edge_reference(edge):
+    """The tick stepped across the release (no splitting: no release logic to share a bug with),
+    DOP853 at rtol = atol = 1e-13 and steps of at most 2 ms (not the 10 ms of the methods held to
+    it): the release is within 1e-15 s of an end, so the law is smooth over all of the tick but that."""
+    sim = edge_sim("DOP853", tol=1e-13, split_kinks=False, step=0.002)
+    return edge_tick(sim, edge_state(sim, edge)[0])
+
+
+def test_the_edge_states_let_go_where_they_say():
+    """The placed state is on the branch its release says (the test law, test/laws.py), and the
+    kernel's closed form puts the release there to round-off."""
+    sim = edge_sim("rk4")
+    act = sim.scene.train.actuator
+    for edge in EDGES:
+        y, release = edge_state(sim, edge)
+        psi0 = y[sim.model.layout.steering]
+        limited = steering_rate(act, psi0, EDGE_COMMAND) == act.max_rate
+        found = kernel.release_of.py_func(sim.model.P, psi0, EDGE_COMMAND, act.max_rate)
+        if release < 0.0:
+            assert not limited and found == math.inf, (edge, found)
+        elif release > 0.0:
+            assert limited and found == pytest.approx(release, abs=2e-16), (edge, found)
+        else:
+            assert found == math.inf or abs(found) < 2e-16, (edge, found)
+
+
+@pytest.mark.parametrize("edge", list(EDGES))
+@pytest.mark.parametrize("method", ADAPTIVE)
+def test_an_adaptive_method_meets_a_release_on_a_tick_boundary(method, edge):
+    """psi_1 after the tick is the actuator's own solution and the train is where the reference
+    puts it. At rtol = atol = 1e-12 each step's error is below ~1e-12 of the state, a tick takes
+    tens of steps: 1e-9 (rad, m) leaves room for any of the five; a tick held on the wrong
+    branch is off by ~1e-2 rad and ~8e-4 m."""
+    sim = edge_sim(method)
+    y, _ = edge_state(sim, edge)
+    psi, points = edge_tick(sim, y)
+    exact = exact_steering(sim.scene.train.actuator, y[sim.model.layout.steering], sim.tick)
+    _, reference = edge_reference(edge)
+    assert abs(psi - exact) < 1e-9, (psi, exact)
+    assert distance(points[None], reference[None]) < 1e-9
+
+
+@pytest.mark.parametrize("edge", list(EDGES))
+@pytest.mark.parametrize("method", list(TABLEAUX))
+def test_a_fixed_method_meets_a_release_on_a_tick_boundary(method, edge):
+    """psi_1 after the tick is the actuator's solution to the reference's ~1e-13 (rk_step takes
+    psi_1 from its closed form, so this holds on either branch); the train is within the method's
+    own error of the reference: the error at step h is (y_h - y_h/2) / (1 - 2^-p) to leading order,
+    bounded here by 3 |y_h - y_h/2| (p >= 1). A tick held on the wrong branch (the same at either
+    step) is ~2e-4 m off, far past that for heun to rk38; euler's own error (~7e-4 m) hides it."""
+    sims = [edge_sim(method, step=h) for h in (0.01, 0.005)]
+    y, _ = edge_state(sims[0], edge)
+    (psi, points), (_, finer) = (edge_tick(sim, y) for sim in sims)
+    exact = exact_steering(sims[0].scene.train.actuator, y[sims[0].model.layout.steering], sims[0].tick)
+    _, reference = edge_reference(edge)
+    assert abs(psi - exact) < 1e-11, (psi, exact)
+    own = distance(points[None], finer[None])
+    assert distance(points[None], reference[None]) <= 3.0 * own + 1e-12, own
+
+
+def test_a_whole_run_meets_a_release_on_a_tick_boundary_as_a_tick_does():
+    """The whole-run path (run/whole.py: sweeps, run/batch.py) steps a tick with the release at
+    either end to the same bits as Simulation.advance, which the test above holds to the physics."""
+    from mta_sim_ros.run import whole
+
+    sim = edge_sim("rk4")
+    model, stepper = sim.model, sim.stepper
+    for edge in EDGES:
+        y, _ = edge_state(sim, edge)
+        v_set = sim.scheduled_inputs(0.0)[1]
+        trace = np.empty((2, whole.TRACE_HEAD + whole.TRACE_CART * model.layout.n))
+        y1, ticks, _, _ = whole.run(model.P, model.P_outputs, stepper.tableau.packed, y, np.array([EDGE_COMMAND]),
+                                    np.array([v_set]), np.array([sim.max_rate]), sim.tick, stepper.step,
+                                    stepper.split_kinks, 0, trace)
+        sim.ticks = 0
+        edge_tick(sim, y)
+        assert ticks == 1
+        np.testing.assert_array_equal(y1, sim.y, err_msg=edge)

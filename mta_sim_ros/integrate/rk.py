@@ -134,7 +134,13 @@ def advance(f, sw, P, T, y0, command, v_set, max_rate, t0, t1, max_step, split):
     held-branch step, ``_locate``). Each piece then integrates a smooth right-hand side, and the
     method keeps its order. A kernel model's steering angle then follows the actuator's closed
     form (``actuator_psi``, see ``rk_step``). Without ``split`` every law follows the state and
-    psi_1 is stepped like the rest (the code before kink splitting, bit for bit)."""
+    psi_1 is stepped like the rest (the code before kink splitting, bit for bit).
+
+    The ends (h the step): a release at most ``EDGE`` h after a step's start, or before it, is
+    taken at the start (released for the whole step); one at most EDGE h before the step's end is
+    taken at the end (rate-limited for the whole step, released from the next on). So a release
+    within EDGE h of a tick's start leaves the actuator released for the whole tick, and one within
+    EDGE h of its end rate-limited for the whole tick, as inside it (``released``, ``until`` below)."""
     return advance_in(f, sw, P, T, y0, command, v_set, max_rate, t0, t1, max_step, split,
                       workspace(P, T, y0.shape[0]))
 

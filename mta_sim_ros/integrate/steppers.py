@@ -184,11 +184,17 @@ class Adaptive:
              held: Held | None = None) -> np.ndarray:
         """One tick of a model: ``fun`` its right-hand side with the input held, ``release`` the
         actuator's release time from t0 (s, inf: it is not rate-limited), ``held`` its branches
-        (a kernel model) or None."""
+        (a kernel model) or None.
+
+        The ends, as ``rk.advance`` takes them (with the tick for its step): a release at most
+        ``rk.EDGE`` (t1 - t0) after t0, or before it, is taken at t0 (released for the whole tick);
+        one at most that before t1 is taken at t1 (rate-limited for the whole tick); only one
+        between them is split at."""
         if not self.split_kinks:
             return self.advance(fun, t0, y0, t1)
-        pieces = [(t0, t1, math.isfinite(release))]
-        if 1e-12 * (t1 - t0) < release < (1.0 - 1e-12) * (t1 - t0):
+        edge = rk.EDGE * (t1 - t0)
+        pieces = [(t0, t1, edge < release < math.inf)]
+        if edge < release < (t1 - t0) - edge:
             pieces = [(t0, t0 + release, True), (t0 + release, t1, False)]
             self.kinks += 1
         y = np.asarray(y0, dtype=float)
