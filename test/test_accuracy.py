@@ -118,14 +118,21 @@ def random_train(rng, n):
     return dataclasses.replace(tr, carts=wide)
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_a_random_train_meets_its_tolerance_and_states_its_error(seed):
+SIZES = (1, 2, 3, 5, 10, 20)  # carts of the random trains, one seed each
+
+
+def random_scene(seed, step=None):
+    """A random train of SIZES[seed] carts, steered by random steps, ramps and sines for 15 s."""
     rng = np.random.default_rng(seed)
-    n = int(rng.choice([1, 2, 3, 5, 10, 20]))  # every size from 1 to 20 carts over the seeds
-    duration = 15.0
-    tr = random_train(rng, n)
-    scene = trains.scene(tr, random_steering(rng, duration), duration=duration, rate=float(rng.choice([20, 50, 100])),
-                         step=None)
+    tr = random_train(rng, SIZES[seed])
+    return trains.scene(tr, random_steering(rng, 15.0), duration=15.0, rate=float(rng.choice([20, 50, 100])),
+                        step=step)
+
+
+@pytest.mark.parametrize("seed", range(len(SIZES)))
+def test_a_random_train_meets_its_tolerance_and_states_its_error(seed):
+    scene = random_scene(seed)
+    n = scene.train.n
     run, stated = accuracy.settle(scene)
     true = check(scene, run, stated)
     assert stated.meets and true <= 1e-6, (n, stated.line(), true)

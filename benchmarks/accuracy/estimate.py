@@ -33,7 +33,6 @@ def cases():
     from mta_sim_ros.physics.loader import load_scene
 
     sys.path.insert(0, str(REPO / "test"))
-    import numpy as np
     import test_accuracy as ta  # the test's scenes: the same cases the estimate is tested on
 
     out = []
@@ -42,13 +41,9 @@ def cases():
         out.append((path.stem, scene, ta.without_step(scene)))
     single = ta.single_tractor_scene(step=0.01)
     out.append(("single tractor (test)", single, ta.without_step(single)))
-    for seed in range(6):
-        rng = np.random.default_rng(seed)
-        n = int(rng.choice([1, 2, 3, 5, 10, 20]))
-        train = ta.random_train(rng, n)
-        scene = ta.trains.scene(train, ta.random_steering(rng, 15.0), duration=15.0,
-                                rate=float(rng.choice([20, 50, 100])), step=0.01)
-        out.append((f"random {n} carts (seed {seed})", scene, ta.without_step(scene)))
+    for seed in range(len(ta.SIZES)):
+        scene = ta.random_scene(seed, step=0.01)
+        out.append((f"random {scene.train.n} carts (seed {seed})", scene, ta.without_step(scene)))
     return out, ta
 
 

@@ -28,6 +28,8 @@ def run_metadata(scene, sim, cfg: dict) -> dict[str, str]:
         "stepper_step": str(sim.stepper_step),  # smaller than step when sub-stepping for stability
         "stability_note": sim.stability_note or "",
         "split_kinks": str(sim.split_kinks),  # steps split where the right-hand side has a kink
+        # the position tolerance (m): with no step given, the step was chosen to meet it on the scene's inputs
+        "tolerance_m": repr(scene.integrator.tolerance),
         "right_hand_side": sim.compiled_note,  # compiled kernels or the same as plain Python; same results
         "rate": str(cfg["publish_rate"]),
         "algorithm": "2",
