@@ -180,6 +180,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
     walk = offsets.beside_offsets if kernel_compiled() else offsets.beside_offsets.py_func
+    bend = (offsets.arc_bends if kernel_compiled() else offsets.arc_bends.py_func)(path_x, path_y)
     left, right = -math.inf, math.inf
     reach = -math.inf
     steer = np.flatnonzero(commands != 0.0)
@@ -195,7 +196,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
             for across in (width / 2, -width / 2):
                 qx = np.ascontiguousarray(bx[:, k] + along * ex - across * ey)
                 qy = np.ascontiguousarray(by[:, k] + along * ey + across * ex)
-                d, at_end = walk(path_x, path_y, qx, qy)
+                d, at_end = walk(path_x, path_y, bend, qx, qy)
                 beside = d[~at_end]
                 if beside.size:
                     left, right = max(left, float(beside.max())), min(right, float(beside.min()))

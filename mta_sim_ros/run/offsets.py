@@ -51,8 +51,15 @@ def path_offsets(px, py, qx, qy, growing):
 
 
 @entry
-def beside_offsets(px, py, qx, qy):
-    """(signed distance of each point q_i from the path p joined by arcs, > 0 left of it, m;
+def arc_bends(px, py):
+    """The curvature of each piece of the path p joined by arcs (``curvatures``), for beside_offsets."""
+    return curvatures(px, py)
+
+
+@entry
+def beside_offsets(px, py, bend, qx, qy):
+    """(signed distance of each point q_i from the path p joined by arcs of curvatures ``bend``
+    (arc_bends), > 0 left of it, m;
     whether its nearest point is an end of the path). The points are taken in order, each searched
     from the piece nearest the point before, walking on while the next piece is not farther: a
     point that moves along the path (a cart's corner along the tractor's path) finds the piece it
@@ -66,7 +73,6 @@ def beside_offsets(px, py, qx, qy):
         for i in range(count):
             out[i] = math.hypot(qx[i] - px[0], qy[i] - py[0])
         return out, at_end
-    bend = curvatures(px, py)
     j = 0
     for i in range(count):
         best, side, u = piece_distance(px, py, bend[j], j, qx[i], qy[i])
@@ -226,3 +232,22 @@ def piece_distance(px, py, bend, s, x, y):
     if to_start <= to_end:
         return to_start, dx * ry - dy * rx, 0.0
     return to_end, dx * ey - dy * ex, 1.0
+
+
+@jitable
+def segment_distance2(px, py, j, first, last, x, y):
+    """(squared distance from (x, y) to segment j of the polyline whose vertices are first..last,
+    the side: the cross product's sign, the position u along the segment); the first and the last
+    segment extend to lines beyond their ends (u < 0, u > 1): the implement controller's projection
+    (controllers/implement/loop.py)."""
+    ax, ay = px[j], py[j]
+    dx, dy = px[j + 1] - ax, py[j + 1] - ay
+    length2 = dx * dx + dy * dy
+    u = ((x - ax) * dx + (y - ay) * dy) / length2 if length2 > 0.0 else 0.0
+    if u > 1.0 and j + 1 < last:
+        u = 1.0
+    if u < 0.0 and j > first:
+        u = 0.0
+    ox, oy = x - (ax + u * dx), y - (ay + u * dy)
+    cross = dx * oy - dy * ox
+    return ox * ox + oy * oy, cross, u
