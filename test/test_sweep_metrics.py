@@ -52,11 +52,12 @@ def test_steady_turn_offtracking_is_the_difference_of_the_closed_form_radii(psi)
     assert result.metrics["max_offtracking_m"] == pytest.approx(circle.R_B[0] - min(circle.R_B), abs=1e-4)
 
 
-def test_steady_turn_swept_width_is_the_circle_geometry():
+@pytest.mark.parametrize("psi", [0.25, -0.15])
+def test_steady_turn_swept_width_is_the_circle_geometry(psi):
     """Each cart turns about the common centre, which lies on its axle's line: its box's farthest
     point is an outer corner, sqrt((R_Bk + w/2)^2 + d^2) with d the longer end of the box from
-    the axle, and its nearest point the inner end of the axle, R_Bk - w/2."""
-    psi = 0.25
+    the axle, and its nearest point the inner end of the axle, R_Bk - w/2. The tractor's samples lie
+    on its circle, so the path joined by arcs is the circle: no chord's sagitta (4e-5 m here)."""
     scene = steady_scene(psi)
     train = scene.train
     circle = steady_circle(train, psi)
@@ -68,7 +69,7 @@ def test_steady_turn_swept_width_is_the_circle_geometry():
         inner.append(circle.R_B[k] - width / 2)
     assert min(inner) > 0  # the centre lies outside every box, so the envelope is a ring
     result = batch.run_metrics(scene)
-    assert result.metrics["swept_width_m"] == pytest.approx(max(outer) - min(inner), abs=2e-4)
+    assert result.metrics["swept_width_m"] == pytest.approx(max(outer) - min(inner), abs=1e-6)
     assert cart_widths(train)[2] == 12.0  # the seeder's working width sets the inner edge here
 
 
@@ -134,9 +135,18 @@ def test_the_last_cart_in_a_steady_turn_pulls_its_resistance_less_its_centripeta
                                                  rel=1e-9)
 
 
-def test_the_off_tracking_of_a_run_equals_analyze_exact_nearest_point_search():
-    scene = loader.load_scene(resolve_config_path("scenes/headland_turn.yaml"))
+@pytest.mark.parametrize("steering", [
+    {"file": "scenes/headland_turn.yaml"},
+    # a figure of eight: each loop laps itself and crosses the other, so the nearest piece of the path
+    # is often not the one nearest the point before
+    {"table": {"time": [0, 30, 31, 60, 61, 90], "angle": [0.35, 0.35, -0.35, -0.35, 0.35, 0.35]}}])
+def test_the_off_tracking_of_a_run_equals_analyze_exact_nearest_point_search(steering):
+    if "file" in steering:
+        scene = loader.load_scene(resolve_config_path(steering["file"]))
+    else:
+        scene = scene_of(loader.read_yaml_mapping(TRAIN), duration=90, steering=steering)
     result = batch.run_metrics(scene, fidelity="dynamic")
+    assert result.verdict == batch.OK
     n = scene.train.n
     cart = result.trace[:, whole.TRACE_HEAD:].reshape(len(result.trace), n, whole.TRACE_CART)
     B = cart[:, :, whole.TR_BX:whole.TR_BY + 1]
@@ -148,6 +158,21 @@ def test_the_off_tracking_of_a_run_equals_analyze_exact_nearest_point_search():
         np.testing.assert_allclose(d[~at_end], exact[~exact_end], rtol=0, atol=1e-12)
         assert result.metrics[f"cart{k + 1}_offtracking_m"] == pytest.approx(np.abs(exact[~exact_end]).max(),
                                                                             abs=1e-12)
+
+
+def test_the_distances_from_a_whole_path_that_crosses_itself_are_analyze_exact_ones():
+    """Not growing: every point against the whole path, a spiral of three laps whose laps cross
+    a sine wave's points, repeated samples (standing still) and points beyond both ends."""
+    t = np.linspace(0.0, 6 * math.pi, 900)
+    path = np.column_stack([(10 + t) * np.cos(t), (10 + t) * np.sin(t)])
+    path = np.concatenate([path[:1], path[:1], path, path[-1:]])
+    s = np.linspace(-40.0, 40.0, 700)
+    points = np.column_stack([s, 8 * np.sin(s / 3)])
+    d, at_end = offsets.path_offsets(path[:, 0].copy(), path[:, 1].copy(), points[:, 0].copy(), points[:, 1].copy(),
+                                     False)
+    exact, exact_end = distance_to_path(points, path)
+    assert np.array_equal(at_end, exact_end) and 0 < at_end.sum() < len(s)
+    np.testing.assert_allclose(d, exact, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("fidelity", ["dynamic", "kinematic"])

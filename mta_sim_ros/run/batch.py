@@ -24,9 +24,11 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
                                               the tractor's path: largest left minus largest right
                                               signed distance of every cart's box corners and
                                               axle ends (outline.box_of: the boxes RViz draws) from
-                                              B_1's whole path, samples beside it (not beyond an
-                                              end). In a steady turn: the outermost corner's
-                                              radius minus the innermost axle end's
+                                              B_1's whole path joined by arcs (offsets: samples
+                                              on a circle give the circle, not its chords),
+                                              samples beside it (not beyond an end). In a
+                                              steady turn: the outermost corner's radius minus
+                                              the innermost axle end's
     headland width                            how far the outlines reach along the initial heading
                                               beyond the tractor's front axle A_1 at the first tick
                                               the scene steers (NaN: it never steers)
@@ -182,6 +184,8 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     }
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
+    walk = offsets.beside_offsets if kernel_compiled() else offsets.beside_offsets.py_func
+    bend = (offsets.arc_bends if kernel_compiled() else offsets.arc_bends.py_func)(path_x, path_y)
     left, right = -math.inf, math.inf
     reach = -math.inf
     steer = np.flatnonzero(commands != 0.0)
@@ -197,7 +201,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
             for across in (width / 2, -width / 2):
                 qx = np.ascontiguousarray(bx[:, k] + along * ex - across * ey)
                 qy = np.ascontiguousarray(by[:, k] + along * ey + across * ex)
-                d, at_end = distances(path_x, path_y, qx, qy, False)
+                d, at_end = walk(path_x, path_y, bend, qx, qy)
                 beside = d[~at_end]
                 if beside.size:
                     left, right = max(left, float(beside.max())), min(right, float(beside.min()))
