@@ -555,8 +555,9 @@ def test_the_bag_metadata_says_what_ran_and_how_it_ended(run):
     assert set(meta["mta_sim_ros"]) == {
         "package_version", "scene_file", "scene_yaml", "train_file", "train_yaml", "method", "step",
         "stepper_step", "stability_note", "split_kinks", "right_hand_side", "rate", "algorithm", "fidelity",
-        "fidelity_reason", "clock_offset", *(f"param.{p.name}" for p in PARAMS)}
+        "fidelity_reason", "clock_offset", "tolerance_m", *(f"param.{p.name}" for p in PARAMS)}
     assert meta["mta_sim_ros"]["scene_yaml"] == SCENE.read_text()
+    assert float(meta["mta_sim_ros"]["tolerance_m"]) == 1e-6  # the scene states none: the default
     assert meta["mta_sim_ros"]["split_kinks"] == "True"  # the default: steps split at kinks
     assert meta["mta_sim_ros"]["param.publish_rate"] == "50.0" and meta["mta_sim_ros"]["clock_offset"] == "0.0"
     assert set(meta["mta_sim_ros.run"]) == {
