@@ -563,7 +563,9 @@ def test_the_bag_metadata_says_what_ran_and_how_it_ended(run):
     assert set(meta["mta_sim_ros.run"]) == {
         *(f"tick_{k}" for k in ("count", "mean", "min", "p50", "p99", "p99.9", "max", "deadline_misses")),
         *(f"tick_cpu_{k}" for k in ("p50", "p99", "p99.9", "max")),
-        "recorder_thread_cpu", "sim_time", "tick_period", "run_sim_time", "run_wall_time"}
+        "recorder_thread_cpu", "sim_time", "tick_period", "run_sim_time", "run_wall_time", "position_error_m",
+        "error_estimate"}
+    assert 0.0 < float(meta["mta_sim_ros.run"]["position_error_m"]) < 1e-6  # the companion followed the run
     topics = {t for t, _, _ in read_messages(str(bag))}
     assert topics == {"/hitch_poses", "/cart_velocities", "/traction_power", "/applied_steering", "/clock", "/markers",
                       "/tf", "/tf_static", "/joint_states", "/odom", "/robot_description"}

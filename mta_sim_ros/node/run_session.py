@@ -54,6 +54,7 @@ from ..messages.topics import (
 from ..messages.urdf import frame_prefix, robot_model
 from ..physics.guards import ModelValidityError
 from ..physics.loader import SpecError, load_scene
+from ..run.companion import Companion, budget_steps, tick_seconds
 from ..run.simulation import Simulation
 from ..validate import InputError, show
 from .commands import HeldCommands
@@ -102,6 +103,7 @@ class RunSession:
         self.cfg = dict(cfg)
         check_config(self.cfg)
         self.clock, self.publish, self.log, self.name = clock, publish, log, name
+        self.compute_clock = compute_clock
         self.profile = profile if profile is not None else NoProfile()
         # the model
         try:
@@ -149,12 +151,32 @@ class RunSession:
         self.sim_fidelity = self.cfg["fidelity"] or None  # what the running level was built from
         with warnings.catch_warnings():  # said once, through the log, below
             warnings.simplefilter("ignore", RuntimeWarning)
-            sim = Simulation(self.scene, method=self.cfg["integrator_method"] or None,
-                             step=self.cfg["integrator_step"] or None, rate=self.cfg["publish_rate"],
-                             fidelity=self.cfg["fidelity"] or None)
+            options = dict(method=self.cfg["integrator_method"] or None, step=self.cfg["integrator_step"] or None,
+                           rate=self.cfg["publish_rate"], fidelity=self.cfg["fidelity"] or None)
+            sim = self._within_budget(Simulation(self.scene, **options), options)
         if sim.stability_note:  # the configured step is past the method's stability limit
             self.log.warning(sim.stability_note)
+        self.companion = Companion(sim, dict(options, fidelity=sim.level, split_kinks=sim.split_kinks))
         return sim
+
+    def _within_budget(self, sim: Simulation, options: dict) -> Simulation:
+        """``sim``, or where the steps its tolerance chose do not fit the wall clock's tick (run and
+        companion in companion.BUDGET_SHARE of it) the same at the most steps that fit, said in the
+        log and in /diagnostics (``budget_note``). Only a step chosen for the tolerance is cut: a
+        step given (scene, parameter) is taken as given."""
+        self.budget_note = ""
+        free = self.cfg["lockstep"] or not self.cfg["real_time_factor"]
+        if free or options["step"] or self.scene.integrator.step or not sim.kernel_ticks:
+            return sim
+        steps = max(1, round(sim.tick / sim.stepper_step))
+        allowed = budget_steps(sim, sim.tick / self.cfg["real_time_factor"], tick_seconds(sim, self.compute_clock))
+        if allowed >= steps:
+            return sim
+        cut = Simulation(self.scene, **dict(options, step=sim.tick / allowed))
+        self.budget_note = (f"the tolerance {self.scene.integrator.tolerance:g} m needs {steps} steps a tick; the "
+                            f"tick's wall time allows {allowed}: running at step {cut.stepper_step:.4g} s")
+        self.log.warning(self.budget_note)
+        return cut
 
     def _recorder(self, namespace: str, background: bool) -> RunRecorder | None:
         """The bag writer of the runs (None when ``record`` is off): the node's topics qualified in
@@ -267,6 +289,7 @@ class RunSession:
             return False
         profile.mark("advance")
         out = self.sim.outputs()
+        self.companion.follow(self.sim, out)  # the run's error estimate (run/companion.py)
         out.t = self.now
         profile.mark("outputs")
         msgs = self.messages.of_tick(out)  # CDR bytes: the same bytes go to DDS and to the bag
@@ -330,6 +353,7 @@ class RunSession:
                 self.recorder.metadata.update(self.run_metadata())
             self.log.info(f"fidelity {self.sim.choice.reason}")
         self.sim.reset()
+        self.companion.reset()
         self.inputs.restart(self.scene.initial.steering, self.sim.v_set)
         self.halted = ""
         self.pace.restart(self.now)  # lockstep: step 1 again
@@ -395,7 +419,8 @@ class RunSession:
         if self.recorder is not None:
             figures["recorder_thread_cpu"] = repr(self.recorder.thread_cpu)
         figures.update(sim_time=repr(self.now), tick_period=repr(self.period),
-                       run_sim_time=repr(self.sim.t), run_wall_time=repr(self.clock() - self.timing.started))
+                       run_sim_time=repr(self.sim.t), run_wall_time=repr(self.clock() - self.timing.started),
+                       position_error_m=repr(self.companion.error), error_estimate=self.companion.how)
         return figures
 
     def _start_bag(self) -> Path | None:
@@ -440,13 +465,17 @@ class RunSession:
             "bag": str(recorder.path) if recorder and recorder.recording else "",
             "lockstep": self.lockstep,
             "implement_lowered": self.inputs.lowered,
+            "position_error_estimate_m": self.companion.error,
+            "position_tolerance_m": self.companion.tolerance,
         }
         for topic, inp in self.inputs.messages.items():
             values.update({f"{topic}_commands": inp.count, f"{topic}_rejected": inp.rejected,
                            f"{topic}_clamped": inp.clamped})
         pace_values, pace_problems = self.pace.status(self.now)
         values.update(pace_values)
-        problems = [recorder.error if recorder else "", *self.inputs.problems(), *pace_problems]
+        over = self.companion.error > self.companion.tolerance
+        problems = [recorder.error if recorder else "", *self.inputs.problems(), *pace_problems, self.budget_note,
+                    self.companion.stopped, self.companion.line() if over else ""]
         if self.watchdog.stale():
             problems.append(f"steering command stale ({steering.age():.1f} s): {self.cfg['watchdog_action']}")
         return status(self.halted, problems, values)
