@@ -28,7 +28,7 @@ import numpy as np
 
 from ..integrate.steppers import FIXED_METHODS
 from ..integrate.tableau import TABLEAUX
-from ..validate import MAX_RUN_STEPS, MAX_STEPS_PER_TICK, steps_per_tick
+from ..validate import MAX_RUN_STEPS, MAX_STEPS_PER_TICK, InputError, steps_per_tick
 from . import whole
 
 #: the estimate stated is this many times the Richardson (or tight-companion) figure
@@ -104,7 +104,10 @@ def estimate(scene, run, **options) -> Accuracy:
     extra, factor, how = companion(sim, options)
     tight = extra.pop("scene_integrator", None)
     other = dataclasses.replace(scene, integrator=tight) if tight is not None else scene
-    second = run_trace(other, **extra)[1]
+    try:
+        second = run_trace(other, **extra)[1]
+    except InputError as err:  # the companion's half step is past validate.MAX_STEPS_PER_TICK
+        return Accuracy(math.nan, scene.integrator.tolerance, sim.method, sim.stepper_step, f"no estimate: {err}")
     error = SAFETY * factor * distance(scene.train, trace, second)
     return Accuracy(error, scene.integrator.tolerance, sim.method, sim.stepper_step, how)
 
@@ -124,9 +127,17 @@ def settle(scene, **options):
     count, order = 1, TABLEAUX[method].order
     ticks = math.floor(scene.duration / tick + 1e-9)
     most = max(1, min(MAX_STEPS_PER_TICK, MAX_RUN_STEPS // max(1, ticks)))  # validate.step_count's limit
+    run = accuracy = None
     for _ in range(ATTEMPTS):
-        run = run_trace(scene, **dict(options, step=tick / count))
-        accuracy = estimate(scene, run, **dict(options, step=tick / count))
+        trial = _tried(scene, count, options)
+        if trial is None:  # cut shorter still for stability, past validate.MAX_STEPS_PER_TICK
+            if run is None:
+                run_trace(scene, **dict(options, step=tick / count))  # raises, saying why
+            break
+        stated = estimate(scene, trial, **dict(options, step=tick / count))
+        if run is not None and not stated.error <= accuracy.error:  # at round-off: more steps do no better
+            break
+        run, accuracy = trial, stated
         done = steps_per_tick(tick, run[0].stepper_step)  # the stepper may take more (stability)
         if accuracy.meets or done >= most:
             break
@@ -135,6 +146,17 @@ def settle(scene, **options):
         if count <= done:  # the run's size allows no more steps
             break
     return run, accuracy
+
+
+def _tried(scene, count: int, options: dict):
+    """The run at ``count`` steps a tick, or None where it would take more than
+    validate.MAX_STEPS_PER_TICK (cut shorter still for stability)."""
+    from .batch import run_trace
+
+    try:
+        return run_trace(scene, **dict(options, step=1.0 / (options.get("rate") or scene.publish_rate) / count))
+    except InputError:
+        return None
 
 
 def chosen_step(scene, **options) -> float:
