@@ -202,6 +202,10 @@ def test_make_report_writes_the_figures_and_the_counts(grid, tmp_path):
     rows = [line for line in table.splitlines() if line.startswith("| ") and not line.startswith("| carts")]
     assert [int(r.split("|")[-2]) for r in rows] == front["run"].tolist()
     assert "Sobol" not in md  # a grid
+    # Every ok row states its run's accuracy, within the scenes' tolerance, and the report says the largest.
+    ok = turn[turn["verdict"] == "ok"]["position_error_m"]
+    assert ((ok > 0) & (ok <= 1e-6)).all(), ok.tolist()
+    assert f"is at most {report._number(float(ok.max()))} m" in _section(md, "## Scene headland_turn")
     # One scene, another folder, other metrics (the margin: maximized).
     paths = report.make_report(folder, x="energy_kWh", y="min_jackknife_margin_deg", scene="headland_turn", best=2,
                                out=tmp_path / "r")

@@ -183,7 +183,7 @@ def _scene_section(scene: str, rows, front, objectives: list[str], sense, best: 
     if not objectives:
         return "\n".join(lines + ["No metric of this scene has a finite value in an ok run.", "", ""])
     words = [f"{m} ({'minimized' if m_ else 'maximized'})" for m, m_ in zip(objectives, sense)]
-    lines += [f"Objectives: {', '.join(words)}.", ""]
+    lines += [f"Objectives: {', '.join(words)}.", ""] + _accuracy(rows)
     if front is not None:
         lines += [f"![Pareto front]({pareto_png.name})", ""]
     lines += [f"![Scatter matrix]({scatter_png.name})", ""]
@@ -230,6 +230,19 @@ def _scene_section(scene: str, rows, front, objectives: list[str], sense, best: 
         if notes:
             lines += [""] + [f"- {_cell(n)}" for n in notes]
     return "\n".join(lines) + "\n\n"
+
+
+def _accuracy(rows) -> list[str]:
+    """What the runs of a scene state of their accuracy (``position_error_m``, run/accuracy.py)."""
+    if "position_error_m" not in rows:
+        return []
+    errors = rows.loc[rows["verdict"] == OK, "position_error_m"].astype(float)
+    errors = errors[np.isfinite(errors)]
+    if errors.empty:
+        return []
+    return [f"Accuracy: the runs' estimated position error (`position_error_m`, docs/accuracy.md) is at most "
+            f"{_number(float(errors.max()))} m, median {_number(float(errors.median()))} m, over {len(errors)} ok "
+            "runs.", ""]
 
 
 def _table(rows, columns: list[str]) -> list[str]:
