@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -137,3 +138,29 @@ def test_a_foreign_plan_of_x_y_is_driven_and_its_straights_worked(field_file, tm
     figures = json.loads((tmp_path / "run" / "metrics.json").read_text())["figures"]
     assert figures["worked_area_ha"] == pytest.approx(2 * 12.0 * 160.0 / 1e4, rel=0.03)
     assert figures["double_worked_ha"] == pytest.approx(0.0, abs=1e-3)
+
+
+def test_a_field_run_states_its_error_within_its_bounds(field_file):
+    """The estimate (a companion at half rk4's step) at or above the run's true error and at most 10
+    times it: the true error against the same plan driven at an eighth of the step (whose own error
+    is 4096 times smaller, rk4)."""
+    import dataclasses
+
+    from mta_sim_ros.controllers.implement.design import Settings
+    from mta_sim_ros.controllers.implement.drive import run_field
+    from mta_sim_ros.controllers.implement.work import work_field
+    from mta_sim_ros.physics.loader import load_train
+    from mta_sim_ros.run.accuracy import points_of
+
+    train = load_train(Path(__file__).resolve().parents[1] / "config" / "trains" / "default.yaml")
+    work = work_field(load_field(field_file), train)
+    fine = run_field(work.plan, train, dataclasses.replace(Settings(), step=work.run.step / 8))
+
+    def points(trace):
+        return points_of(train, trace.axle[:, :, 0], trace.axle[:, :, 1], trace.heading)
+
+    a, b = points(work.run.trace), points(fine.trace)
+    assert a.shape == b.shape  # the same ticks: the same route driven to its end
+    true = float(np.max(np.linalg.norm(a - b, axis=2)))
+    assert true <= work.accuracy.error <= 10 * true, (work.accuracy.line(), true)
+    assert work.accuracy.tolerance is None and "step halving" in work.accuracy.line()

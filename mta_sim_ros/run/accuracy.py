@@ -44,19 +44,19 @@ class Accuracy:
     """What a run states about its accuracy."""
 
     error: float  # m, the estimated largest position error (``points``) over the run
-    tolerance: float  # m, what the scene asked for
+    tolerance: float | None  # m, what the scene asked for (None: it asks for none, a field run's drive)
     method: str
     step: float  # s, the step the run took (the largest, for an adaptive method)
     how: str  # how the estimate was made
 
     @property
     def meets(self) -> bool:
-        return self.error <= self.tolerance
+        return self.tolerance is None or self.error <= self.tolerance
 
     def line(self) -> str:
-        verdict = "within" if self.meets else "OVER"
-        return (f"estimated position error {self.error:.2g} m, {verdict} the tolerance {self.tolerance:g} m "
-                f"({self.method}, step {self.step:.4g} s; {self.how})")
+        verdict = "" if self.tolerance is None else \
+            f", {'within' if self.meets else 'OVER'} the tolerance {self.tolerance:g} m"
+        return f"estimated position error {self.error:.2g} m{verdict} ({self.method}, step {self.step:.4g} s; {self.how})"
 
     def metadata(self) -> dict[str, str]:
         """The bag's metadata fields."""
@@ -64,11 +64,21 @@ class Accuracy:
                 "error_estimate": self.how}
 
 
+def richardson(order: int) -> float:
+    """The factor from the largest distance between a run and its companion at half the step to the
+    run's error, for a method of ``order`` (module docstring)."""
+    return 2.0 ** order / (2.0 ** order - 1.0)
+
+
 def points(train, trace: np.ndarray) -> np.ndarray:
     """(rows, 2n + 1, 2): A_k and B_k of every cart and the last rear hitch, from a run's trace."""
     n = train.n
     cart = trace[:, whole.TRACE_HEAD:].reshape(trace.shape[0], n, whole.TRACE_CART)
-    bx, by, th = cart[:, :, whole.TR_BX], cart[:, :, whole.TR_BY], cart[:, :, whole.TR_HEADING]
+    return points_of(train, cart[:, :, whole.TR_BX], cart[:, :, whole.TR_BY], cart[:, :, whole.TR_HEADING])
+
+
+def points_of(train, bx: np.ndarray, by: np.ndarray, th: np.ndarray) -> np.ndarray:
+    """``points`` from the axle centres B_k (bx, by: rows x n) and headings th_k (rows x n)."""
     ex, ey = np.cos(th), np.sin(th)
     length = np.array([c.length for c in train.carts])
     ax, ay = bx + length * ex, by + length * ey
@@ -91,7 +101,7 @@ def companion(sim, options: dict) -> tuple[dict, float, str]:
     if sim.method in FIXED_METHODS:
         p = TABLEAUX[sim.method].order
         half = dict(options, method=sim.method, step=sim.stepper_step / 2.0)
-        return half, 2.0 ** p / (2.0 ** p - 1.0), f"step halving, order {p}"
+        return half, richardson(p), f"step halving, order {p}"
     tight = dataclasses.replace(sim.scene.integrator, rtol=sim.rtol / TIGHTER, atol=sim.atol / TIGHTER)
     return dict(options, method=sim.method, scene_integrator=tight), 1.0, f"rtol, atol / {TIGHTER:g}"
 

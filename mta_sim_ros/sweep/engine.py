@@ -122,7 +122,8 @@ def run_field_scene(scene, train):
     implement_of(train)  # a train without an implement is refused in one line
     work = work_field(scene.field, train, scene.options(train), Settings(**scene.drive))
     trace = work.run.trace
-    return RunResult(dict(work.result.values), trace.verdict, trace.reason, float(trace.t[-1]), "dynamic", None)
+    figures = dict(work.result.values, position_error_m=work.accuracy.error)  # the run's stated accuracy
+    return RunResult(figures, trace.verdict, trace.reason, float(trace.t[-1]), "dynamic", None)
 
 
 def _row(base: dict, index: int, j: int, scenes: list, names: list, verdict: str, reason: str) -> dict:

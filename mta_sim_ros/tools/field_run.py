@@ -209,6 +209,8 @@ def metrics_document(work: Work) -> dict:
             "figures": {k: v if math.isfinite(v) else None for k, v in result.values.items()},
             "excursions": [dataclasses.asdict(e) for e in result.excursions],
             "timings_s": work.timings, "plan_notes": list(plan.notes),
+            "accuracy": {"position_error_m": work.accuracy.error, "estimate": work.accuracy.how,
+                         "line": work.accuracy.line()},
             "controller": {"speeds_m_s": list(run.controller.speeds), "lead_s": run.controller.lead,
                            "forward_angle_deg": math.degrees(run.controller.forward_angle),
                            "gains": [g.K.tolist() for g in run.controller.gains],
@@ -224,7 +226,8 @@ def metrics_markdown(work: Work) -> str:
             f"Field {plan.field.source}, train {work.train.source}; {len(plan.swaths)} swaths, route "
             f"{plan.route.s[-1] / 1e3:.2f} km.", ""]
     times = ", ".join(f"{k} {v:.2f} s" for k, v in work.timings.items())
-    return "\n".join(head) + markdown(work.result) + f"\nWhere the time went: {times}.\n"
+    return ("\n".join(head) + markdown(work.result) + f"\nAccuracy: {work.accuracy.line()} (docs/accuracy.md).\n"
+            f"\nWhere the time went: {times}.\n")
 
 
 def write_run(paths: dict, work: Work) -> None:
@@ -253,5 +256,5 @@ def summary(work: Work) -> str:
         f"{v['field_efficiency_pct']:.1f} %), energy {v['energy_kWh']:.0f} kWh, fuel {v['fuel_l']:.1f} l",
         f"tracking error on working passes: RMS {v['tracking_rms_m']:.3f} m, p95 {v['tracking_p95_m']:.3f} m, "
         f"max {v['tracking_max_m']:.2f} m; footprint outside {v['excursions']:.0f} times",
-        f"verdict {verdict}",
+        f"verdict {verdict}; {work.accuracy.line()}",
         "time: " + ", ".join(f"{k} {s:.2f} s" for k, s in work.timings.items())])

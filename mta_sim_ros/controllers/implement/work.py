@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
+
+import numpy as np
 
 from ...field.coverage import FieldMetrics, metrics
 from ...field.plan import plan_field
 from ...field.types import Plan, PlanOptions
+from ...integrate.tableau import TABLEAUX
+from ...run.accuracy import SAFETY, Accuracy, points_of, richardson
 from .design import Settings
 from .drive import FieldRun, run_field
 
@@ -20,7 +25,8 @@ class Work:
     train: object
     run: FieldRun
     result: FieldMetrics
-    timings: dict  # s: plan, design, compile, loop, metrics
+    timings: dict  # s: plan, design, compile, loop, accuracy, metrics
+    accuracy: Accuracy  # the run's estimated position error
 
 
 def work_field(field, train, options: PlanOptions | None = None, settings: Settings = Settings(),
@@ -35,6 +41,22 @@ def work_field(field, train, options: PlanOptions | None = None, settings: Setti
     run = run_field(plan, train, settings)
     timings.update(run.timings)
     t = time.perf_counter()
+    stated = accuracy_of(plan, train, settings, run)
+    timings["accuracy"] = time.perf_counter() - t
+    t = time.perf_counter()
     result = metrics(run.trace, train)
     timings["metrics"] = time.perf_counter() - t
-    return Work(plan, train, run, result, timings)
+    return Work(plan, train, run, result, timings, stated)
+
+
+def accuracy_of(plan: Plan, train, settings: Settings, run: FieldRun) -> Accuracy:
+    """The run's estimated position error (run/accuracy.py): the same plan driven at half rk4's step,
+    the largest distance between the two runs' A_k, B_k and rear hitch over the ticks both ran,
+    times the Richardson factor of rk4 and accuracy.SAFETY. A field run states no tolerance."""
+    half = run_field(plan, train, dataclasses.replace(settings, step=run.step / 2.0))
+    a, b = run.trace, half.trace
+    rows = min(len(a.t), len(b.t))
+    d = np.linalg.norm(points_of(train, a.axle[:rows, :, 0], a.axle[:rows, :, 1], a.heading[:rows])
+                       - points_of(train, b.axle[:rows, :, 0], b.axle[:rows, :, 1], b.heading[:rows]), axis=2)
+    error = SAFETY * richardson(TABLEAUX["rk4"].order) * float(np.max(d)) if rows else math.nan
+    return Accuracy(error, None, "rk4", run.step, "step halving, order 4")
