@@ -27,7 +27,7 @@ from ..common import REPO, header_lines, log, table, write_report
 
 HELP = "mta field run on a whole field (default kuban, 21 ha): wall time on one core and where it goes"
 TARGET = 5.0  # s, the issue's
-PARTS = ("imports and writing", "inputs", "plan", "design", "compile", "loop", "metrics")
+PARTS = ("imports and writing", "inputs", "plan", "design", "compile", "loop", "accuracy", "metrics")
 
 
 def add_arguments(p) -> None:
@@ -87,7 +87,8 @@ def main(args) -> int:
         "metrics: the wall time the command's own timings leave), inputs (the field and train files read and "
         "checked), plan (field.plan.plan_field, its turns sized on the inverted chain), design (the LQR gains: the linear model by "
         "forward-mode duals, scipy's Riccati solver), compile (numba's cache load of the loop, or its compilation), "
-        "loop (the whole route, tick by tick, compiled), metrics (field/coverage.py: shapely's strips, union, "
+        "loop (the whole route, tick by tick, compiled), accuracy (the run's error estimate: the route driven "
+        "again at half the step, docs/accuracy.md), metrics (field/coverage.py: shapely's strips, union, "
         "skips by cause, double-worked ground, footprints).", "",
         "## The run measured", "",
         *table([(k, f"{v:.4g}" if isinstance(v, float) else v) for k, v in figures.items()], ["figure", "value"],

@@ -497,5 +497,6 @@ class RunSession:
         line = tick_line(self.timing.stats, self.timing.cpu, self.period)
         if line:
             self.log.info(line)
+            self.log.info(self.companion.line())  # the run's accuracy (run/companion.py)
         if self.recorder is not None:
             self.recorder.close(self.run_figures())
