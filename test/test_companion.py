@@ -50,6 +50,9 @@ def test_an_adaptive_runs_companion_runs_at_tighter_tolerances():
     companion = Companion(sim, {"method": "RK45"})
     assert (companion.sim.rtol, companion.sim.atol) == (sim.rtol / accuracy.TIGHTER, sim.atol / accuracy.TIGHTER)
     assert companion.factor == 1.0
+    slip = Simulation(scene, fidelity="slip")  # the slip level's own tolerances, not the scene's
+    companion = Companion(slip, {"fidelity": "slip"})
+    assert (companion.sim.rtol, companion.sim.atol) == (slip.rtol / accuracy.TIGHTER, slip.atol / accuracy.TIGHTER)
 
 
 def test_the_budget_is_the_most_steps_whose_run_and_companion_fit():

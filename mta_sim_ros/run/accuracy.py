@@ -20,7 +20,6 @@ predicting the count from the estimate's order, at most ``ATTEMPTS`` tries).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -102,8 +101,8 @@ def companion(sim, options: dict) -> tuple[dict, float, str]:
         p = TABLEAUX[sim.method].order
         half = dict(options, method=sim.method, step=sim.stepper_step / 2.0)
         return half, richardson(p), f"step halving, order {p}"
-    tight = dataclasses.replace(sim.scene.integrator, rtol=sim.rtol / TIGHTER, atol=sim.atol / TIGHTER)
-    return dict(options, method=sim.method, scene_integrator=tight), 1.0, f"rtol, atol / {TIGHTER:g}"
+    tight = (sim.rtol / TIGHTER, sim.atol / TIGHTER)
+    return dict(options, method=sim.method, tolerances=tight), 1.0, f"rtol, atol / {TIGHTER:g}"
 
 
 def estimate(scene, run, **options) -> Accuracy:
@@ -112,10 +111,8 @@ def estimate(scene, run, **options) -> Accuracy:
 
     sim, trace = run[0], run[1]
     extra, factor, how = companion(sim, options)
-    tight = extra.pop("scene_integrator", None)
-    other = dataclasses.replace(scene, integrator=tight) if tight is not None else scene
     try:
-        second = run_trace(other, **extra)[1]
+        second = run_trace(scene, **extra)[1]
     except InputError as err:  # the companion's half step is past validate.MAX_STEPS_PER_TICK
         return Accuracy(math.nan, scene.integrator.tolerance, sim.method, sim.stepper_step, f"no estimate: {err}")
     error = SAFETY * factor * distance(scene.train, trace, second)

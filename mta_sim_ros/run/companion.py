@@ -13,7 +13,6 @@ allows, where the tolerance asks for more.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -37,10 +36,8 @@ class Companion:
 
     def __init__(self, sim: Simulation, options: dict):
         extra, self.factor, self.how = companion(sim, dict(options))
-        tight = extra.pop("scene_integrator", None)
-        scene = dataclasses.replace(sim.scene, integrator=tight) if tight is not None else sim.scene
         extra.setdefault("fidelity", sim.level)
-        self.sim = Simulation(scene, **extra)
+        self.sim = Simulation(sim.scene, **extra)
         self.tolerance = sim.scene.integrator.tolerance
         self.distance = 0.0
         self.stopped = ""  # why the companion stopped (its own guard), "" while it follows

@@ -107,7 +107,8 @@ class Simulation:
 
     def __init__(self, scene: Scene, method: str | None = None, step: float | None = None,
                  rate: float | None = None, algorithm: int = 2, substep: bool = True,
-                 fidelity: str | None = None, compiled: bool | None = None, split_kinks: bool | None = None):
+                 fidelity: str | None = None, compiled: bool | None = None, split_kinks: bool | None = None,
+                 tolerances: tuple[float, float] | None = None):
         """``compiled``: run the kernels (model/kernel.py: the dynamic and kinematic levels with
         algorithm 2) compiled by numba, or as plain Python: None (default) = compiled when numba
         runs and the environment does not set MTA_SIM_NO_JIT=1, True = required, False = Python;
@@ -117,7 +118,8 @@ class Simulation:
 
         ``split_kinks``: split each step where the right-hand side is not smooth (the actuator's
         rate limit letting go, a force limit engaging; integrate/steppers.py); None = the scene's
-        ``integrator.split_kinks`` (default true).
+        ``integrator.split_kinks`` (default true). ``tolerances``: (rtol, atol) of an adaptive
+        method in place of the scene's (the slip level's own; a run's companion, run/accuracy.py).
 
         A fixed step past its method's stability limit for a fast mode of the model (e.g. rk4
         with step > 2.785 x the steering actuator's time constant) would give growing garbage:
@@ -143,6 +145,8 @@ class Simulation:
             self.rtol, self.atol = slip.DEFAULT_RTOL, slip.DEFAULT_ATOL
             if method is None:
                 method, step = slip.DEFAULT_METHOD, step or 1.0 / (rate or scene.publish_rate)
+        if tolerances is not None:  # an adaptive method's rtol, atol in place of the scene's (or slip's)
+            self.rtol, self.atol = (float(t) for t in tolerances)
         self.method = method or integ.method
         self.split_kinks = integ.split_kinks if split_kinks is None else bool(split_kinks)
         self.tick = 1.0 / (rate or scene.publish_rate)
