@@ -133,7 +133,8 @@ def settle(scene, **options):
     tick = 1.0 / (options.get("rate") or scene.publish_rate)
     count, order = 1, TABLEAUX[method].order
     ticks = math.floor(scene.duration / tick + 1e-9)
-    most = max(1, min(MAX_STEPS_PER_TICK, MAX_RUN_STEPS // max(1, ticks)))  # validate.step_count's limit
+    # validate's limits, the companion's twice the steps included: MAX_STEPS_PER_TICK, step_count's
+    most = max(1, min(MAX_STEPS_PER_TICK // 2, MAX_RUN_STEPS // max(1, ticks)))
     run = accuracy = None
     for _ in range(ATTEMPTS):
         trial = _tried(scene, count, options)
