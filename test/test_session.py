@@ -555,16 +555,16 @@ def test_the_bag_metadata_says_what_ran_and_how_it_ended(run):
     assert set(meta["mta_sim_ros"]) == {
         "package_version", "scene_file", "scene_yaml", "train_file", "train_yaml", "method", "step",
         "stepper_step", "stability_note", "split_kinks", "right_hand_side", "rate", "algorithm", "fidelity",
-        "fidelity_reason", "clock_offset", "tolerance_m", *(f"param.{p.name}" for p in PARAMS)}
+        "fidelity_reason", "clock_offset", "tolerance_m", "error_estimate", *(f"param.{p.name}" for p in PARAMS)}
     assert meta["mta_sim_ros"]["scene_yaml"] == SCENE.read_text()
-    assert float(meta["mta_sim_ros"]["tolerance_m"]) == 1e-6  # the scene states none: the default
+    assert float(meta["mta_sim_ros"]["tolerance_m"]) == 1e-6  # the scene asks for the default
+    assert meta["mta_sim_ros"]["error_estimate"] == "step halving, order 4"  # rk4's companion at half the step
     assert meta["mta_sim_ros"]["split_kinks"] == "True"  # the default: steps split at kinks
     assert meta["mta_sim_ros"]["param.publish_rate"] == "50.0" and meta["mta_sim_ros"]["clock_offset"] == "0.0"
     assert set(meta["mta_sim_ros.run"]) == {
         *(f"tick_{k}" for k in ("count", "mean", "min", "p50", "p99", "p99.9", "max", "deadline_misses")),
         *(f"tick_cpu_{k}" for k in ("p50", "p99", "p99.9", "max")),
-        "recorder_thread_cpu", "sim_time", "tick_period", "run_sim_time", "run_wall_time", "position_error_m",
-        "error_estimate"}
+        "recorder_thread_cpu", "sim_time", "tick_period", "run_sim_time", "run_wall_time", "position_error_m"}
     assert 0.0 < float(meta["mta_sim_ros.run"]["position_error_m"]) < 1e-6  # the companion followed the run
     topics = {t for t, _, _ in read_messages(str(bag))}
     assert topics == {"/hitch_poses", "/cart_velocities", "/traction_power", "/applied_steering", "/clock", "/markers",

@@ -410,7 +410,7 @@ class RunSession:
     def run_metadata(self) -> dict[str, str]:
         """The bag's metadata record mta_sim_ros (runlog.run_metadata; clock_offset is added when
         each bag starts)."""
-        return run_metadata(self.scene, self.sim, self.cfg)
+        return {**run_metadata(self.scene, self.sim, self.cfg), "error_estimate": self.companion.how}
 
     def run_figures(self) -> dict[str, str]:
         """The bag's closing record mta_sim_ros.run: tick statistics, the bag writer thread's CPU
@@ -420,7 +420,7 @@ class RunSession:
             figures["recorder_thread_cpu"] = repr(self.recorder.thread_cpu)
         figures.update(sim_time=repr(self.now), tick_period=repr(self.period),
                        run_sim_time=repr(self.sim.t), run_wall_time=repr(self.clock() - self.timing.started),
-                       position_error_m=repr(self.companion.error), error_estimate=self.companion.how)
+                       position_error_m=repr(self.companion.error))
         return figures
 
     def _start_bag(self) -> Path | None:
