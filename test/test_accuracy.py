@@ -166,3 +166,20 @@ def test_an_adaptive_run_states_its_error(method, name):
     run, stated = accuracy.settle(scene, method=method)
     assert stated.how == f"rtol, atol / {accuracy.TIGHTER:g}"
     check(scene, run, stated)
+
+
+def test_mta_run_its_bag_its_report_and_its_analysis_state_the_error(tmp_path):
+    """The offline run's estimate (accuracy.settle of the scene) in the bag's metadata, the report's
+    accuracy line and mta analyze's summary: the same number."""
+    from mta_sim_ros import cli
+    from mta_sim_ros.analysis.bagdata import load_bag
+    from mta_sim_ros.bag import read_metadata
+
+    path = REPO / "config" / "scenes" / "kinks.yaml"
+    stated = accuracy.settle(load_scene(path))[1]
+    bag = tmp_path / "kinks.mcap"
+    assert cli.main(["run", "--scene", str(path), "--bag", str(bag), "--quiet"]) == 0
+    meta = read_metadata(bag)["mta_sim_ros"]
+    assert float(meta["position_error_m"]) == stated.error and float(meta["tolerance_m"]) == 1e-6
+    assert f"| accuracy | {stated.line()} |" in bag.with_suffix(".md").read_text()
+    assert load_bag(bag).position_error_m == stated.error

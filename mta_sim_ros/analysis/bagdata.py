@@ -56,6 +56,7 @@ class BagData:
     applied: Series | None = None  # rad (N,)
     setpoint: Series | None = None  # m/s (N,)
     notes: list[str] = field(default_factory=list)
+    position_error_m: float | None = None  # the run's stated accuracy (its metadata), None: not stated
 
     @property
     def cart_names(self) -> list[str]:
@@ -126,6 +127,21 @@ def _train_from_metadata(path: Path) -> tuple[Any, str]:
     return recorded_train(meta, str(path)), recorded_scene_name(meta, str(path))
 
 
+def stated_error(path: Path) -> float | None:
+    """The run's estimated position error as its bag states it (run/accuracy.py): ``mta run``'s in
+    the record mta_sim_ros, the node's in its closing record mta_sim_ros.run; None when neither
+    holds a finite number (a bag of an older version, a node cut short)."""
+    meta = read_metadata(path)
+    for record in ("mta_sim_ros.run", RECORD):
+        try:
+            value = float(meta.get(record, {}).get("position_error_m", "nan"))
+        except ValueError:
+            continue
+        if math.isfinite(value):
+            return value
+    return None
+
+
 def _series(rows: list[tuple[int, Any]], value) -> Series | None:
     if not rows:
         return None
@@ -172,6 +188,7 @@ def load_bag(path: str | os.PathLike, label: str | None = None) -> BagData:
         train=train,
         topics=topics,
         messages=messages,
+        position_error_m=stated_error(path),
         poses=_series(poses, lambda m: [[p.position.x, p.position.y] for p in m.poses]),
         pose_heading=_series(poses, lambda m: [quaternion_yaw(p.orientation) for p in m.poses]),
         com_speed=_series(vel, by_cart("velocity")),

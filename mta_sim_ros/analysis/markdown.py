@@ -15,6 +15,8 @@ def _summary_rows(s: dict) -> list[tuple[str, str]]:
     rows = [("scene / train", f"{s['scene']} / {s['train']}"),
             ("duration", f"{s['duration_s']:.2f} s ({s['samples']} poses)"),
             ("distance travelled by A_1", f"{s['distance_A1_m']:.2f} m")]
+    if s.get("position_error_m") is not None:
+        rows.append(("estimated position error of the run (the bag's metadata)", f"{s['position_error_m']:.2g} m"))
     if "power_kW" in s:
         p = s["power_kW"]
         rows.append(("traction power min / mean / max", f"{p['min']:.1f} / {p['mean']:.1f} / {p['max']:.1f} kW"))

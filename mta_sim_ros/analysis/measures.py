@@ -132,6 +132,7 @@ def summarize(data: BagData) -> dict:
         "topics": data.topics, "samples": int(len(t)),
         "duration_s": float(t[-1] - t[0]),
         "distance_A1_m": float(np.hypot(*np.diff(A1, axis=0).T).sum()),
+        "position_error_m": data.position_error_m,  # as the bag states it; None: it does not
     }
     if data.power is not None and len(data.power.t) > 1:
         P, tp = data.power.values, data.power.t
