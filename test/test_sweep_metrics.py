@@ -211,3 +211,21 @@ def test_energy_per_hectare_is_the_energy_over_the_seeder_strip():
     assert m["energy_per_ha_kWh"] == pytest.approx(m["energy_kWh"] / m["worked_area_ha"], rel=1e-12)
     assert m["mean_power_kW"] == pytest.approx(m["energy_kWh"] * 3600.0 / 30.0, rel=1e-12)
     assert math.isnan(m["headland_width_m"])  # it never steers
+
+
+def test_a_standstill_at_the_end_adds_nothing_beside_the_path():
+    """A train that ends its run standing still repeats its last sample: a box corner ahead of the
+    tractor is then past the path's end at every such tick, not beside it (it would widen the swept
+    width by its distance from the end sample)."""
+    from mta_sim_ros.run import offsets
+
+    px = np.linspace(0.0, 10.0, 51)
+    still = np.concatenate([px, np.full(20, px[-1])])  # 20 ticks standing at x = 10
+    y = np.zeros_like(still)
+    qx, qy = still + 2.0, y - 1.0  # a front corner 2 m ahead and 1 m right of the axle, every tick
+    for run in (offsets.beside_offsets, offsets.beside_offsets.py_func):
+        bend = offsets.arc_bends(still, y)
+        d, at_end = run(still, y, bend, qx, qy)
+        moving = qx[:51] < 10.0  # the corner beside the path while the path reaches past it
+        assert at_end[51:].all() and not at_end[:51][moving].any()
+        np.testing.assert_allclose(d[:51][moving], -1.0, atol=1e-12)  # 1 m right of the path

@@ -82,7 +82,9 @@ def beside_offsets(px, py, bend, qx, qy):
                 break
             best, side, u, j = d, s, v, j + 1
         out[i] = best if side >= 0.0 else -best
-        at_end[i] = (j <= head and u == 0.0) or (j >= prev[m - 2] and u == 1.0)
+        # past the last piece of nonzero length (the samples of a train standing still at the end) the
+        # nearest point is the path's end sample, whatever u a repeated sample's piece gives
+        at_end[i] = (j <= head and u == 0.0) or (j >= prev[m - 2] and u == 1.0) or j > prev[m - 2]
     return out, at_end
 
 
@@ -224,7 +226,7 @@ def piece_distance(px, py, bend, s, x, y):
     a, b = mx * tx + my * ty, my * tx - mx * ty
     rise = math.sqrt(1.0 - (bend * half) ** 2)  # the centre is (0, rise / bend)
     kd = math.hypot(bend * a, rise - bend * b)  # |bend| D
-    if rise - bend * b > 0.0 and abs(a) <= half * kd:
+    if rise - bend * b > 0.0 and 0.0 < kd and abs(a) <= half * kd:  # (kd = 0: the centre, every point as near)
         signed = (bend * (half * half - a * a - b * b) + 2.0 * rise * b) / (1.0 + kd)
         return abs(signed), signed, 0.5 + a / (kd * chord)
     ex, ey = rx - dx, ry - dy
