@@ -183,3 +183,13 @@ def test_mta_run_its_bag_its_report_and_its_analysis_state_the_error(tmp_path):
     assert float(meta["position_error_m"]) == stated.error and float(meta["tolerance_m"]) == 1e-6
     assert f"| accuracy | {stated.line()} |" in bag.with_suffix(".md").read_text()
     assert load_bag(bag).position_error_m == stated.error
+
+
+def test_a_slip_level_run_is_not_searched_for_a_step():
+    """The slip level steps with its own adaptive method (physics/slip.py): settle runs it once at
+    its largest step (the tick) and states the error from a companion at tighter tolerances."""
+    scene = dataclasses.replace(load_scene(REPO / "config" / "scenes" / "straight_pass.yaml"), duration=2.0)
+    assert accuracy.run_method(scene, {"fidelity": "slip"}) != scene.integrator.method
+    run, stated = accuracy.settle(scene, fidelity="slip")
+    assert run[0].level == "slip" and run[0].step == run[0].tick
+    assert stated.how == f"rtol, atol / {accuracy.TIGHTER:g}" and stated.error > 0

@@ -118,3 +118,19 @@ def test_a_tolerance_the_tick_affords_runs_as_chosen_and_is_quiet(tmp_path):
         assert 0.0 < state.values["position_error_estimate_m"] < 1e-6
     finally:
         s.close()
+
+
+def test_a_companion_that_cannot_run_says_so_and_the_run_goes_on():
+    """A step at tick / (MAX_STEPS_PER_TICK - 1): its companion at half of it would take more
+    steps a tick than a run may; the run still runs, and states no error rather than a number."""
+    from mta_sim_ros.validate import MAX_STEPS_PER_TICK
+
+    scene = dataclasses.replace(load_scene(REPO / "config" / "scenes" / "kinks.yaml"), duration=0.05)
+    sim = Simulation(scene, step=0.01 / (MAX_STEPS_PER_TICK - 1))
+    companion = Companion(sim, {"step": sim.step})
+    assert companion.sim is None and "cannot run" in companion.line()
+    sim.advance(*sim.scheduled_inputs(0.0))
+    companion.follow(sim, sim.outputs())
+    assert companion.error != companion.error  # NaN: not a number the bag would take for an estimate
+    offline = accuracy.estimate(scene, run_trace(scene, step=sim.step), step=sim.step)
+    assert offline.error != offline.error and "not estimated" in offline.line() and not offline.meets

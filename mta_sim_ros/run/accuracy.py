@@ -50,9 +50,12 @@ class Accuracy:
 
     @property
     def meets(self) -> bool:
+        """Within the tolerance (or none asked); False where it is over it or not estimated."""
         return self.tolerance is None or self.error <= self.tolerance
 
     def line(self) -> str:
+        if not math.isfinite(self.error):
+            return f"position error not estimated ({self.method}, step {self.step:.4g} s; {self.how})"
         verdict = "" if self.tolerance is None else \
             f", {'within' if self.meets else 'OVER'} the tolerance {self.tolerance:g} m"
         return f"estimated position error {self.error:.2g} m{verdict} ({self.method}, step {self.step:.4g} s; {self.how})"
@@ -91,7 +94,7 @@ def distance(train, a: np.ndarray, b: np.ndarray) -> float:
     rows = min(a.shape[0], b.shape[0])
     d = np.linalg.norm(points(train, a[:rows]) - points(train, b[:rows]), axis=2)
     d = d[np.isfinite(d)]
-    return float(d.max()) if d.size else 0.0
+    return float(d.max()) if d.size else math.nan  # no row both ran with finite points: no estimate
 
 
 def companion(sim, options: dict) -> tuple[dict, float, str]:
@@ -112,10 +115,12 @@ def estimate(scene, run, **options) -> Accuracy:
     sim, trace = run[0], run[1]
     extra, factor, how = companion(sim, options)
     try:
-        second = run_trace(scene, **extra)[1]
+        other = run_trace(scene, **extra)
     except InputError as err:  # the companion's half step is past validate.MAX_STEPS_PER_TICK
         return Accuracy(math.nan, scene.integrator.tolerance, sim.method, sim.stepper_step, f"no estimate: {err}")
-    error = SAFETY * factor * distance(scene.train, trace, second)
+    error = SAFETY * factor * distance(scene.train, trace[: run[3] + 1], other[1][: other[3] + 1])
+    if other[3] < run[3]:  # its guard stopped it first: the estimate covers the run up to there
+        how += f"; the companion stopped at t = {other[0].t:.3f} s, the estimate covers the run to there"
     return Accuracy(error, scene.integrator.tolerance, sim.method, sim.stepper_step, how)
 
 
@@ -126,15 +131,15 @@ def settle(scene, **options):
     count of at most validate.MAX_STEPS_PER_TICK does, the finest tried, its estimate saying so."""
     from .batch import run_trace
 
-    method = options.get("method") or scene.integrator.method
-    if options.get("step") or scene.integrator.step or method not in FIXED_METHODS:
+    if options.get("step") or scene.integrator.step or run_method(scene, options) not in FIXED_METHODS:
         run = run_trace(scene, **options)
         return run, estimate(scene, run, **options)
+    method = run_method(scene, options)
     tick = 1.0 / (options.get("rate") or scene.publish_rate)
     count, order = 1, TABLEAUX[method].order
     ticks = math.floor(scene.duration / tick + 1e-9)
-    # validate's limits, the companion's twice the steps included: MAX_STEPS_PER_TICK, step_count's
-    most = max(1, min(MAX_STEPS_PER_TICK // 2, MAX_RUN_STEPS // max(1, ticks)))
+    # validate's limits with room for the companion's twice the steps: MAX_STEPS_PER_TICK, step_count's
+    most = max(1, min(MAX_STEPS_PER_TICK // 2, MAX_RUN_STEPS // max(1, 2 * ticks)))
     run = accuracy = None
     for _ in range(ATTEMPTS):
         trial = _tried(scene, count, options)
@@ -147,7 +152,7 @@ def settle(scene, **options):
             break
         run, accuracy = trial, stated
         done = steps_per_tick(tick, run[0].stepper_step)  # the stepper may take more (stability)
-        if accuracy.meets or done >= most:
+        if accuracy.meets or done >= most or not math.isfinite(accuracy.error):
             break
         grow = (accuracy.error / accuracy.tolerance) ** (1.0 / order) * 1.2
         count = min(most, max(done + 1, math.ceil(done * grow)))
@@ -167,6 +172,33 @@ def _tried(scene, count: int, options: dict):
         return None
 
 
+def run_method(scene, options: dict) -> str:
+    """The method a run of ``scene`` with ``options`` takes, as Simulation picks it: the option,
+    else the slip level's own (an adaptive one) when the run is on the slip level, else the scene's."""
+    if options.get("method"):
+        return options["method"]
+    from ..physics.slip import DEFAULT_METHOD
+    from .fidelity import choose
+
+    if choose(scene, forced=options.get("fidelity")).level == "slip":
+        return DEFAULT_METHOD
+    return scene.integrator.method
+
+
+#: chosen_step's answers: (scene, options) -> step; a scene is a frozen value, the same one again is
+#: the same search (a node's fidelity check, a reset, a controller's set-up)
+_CHOSEN: dict = {}
+
+
 def chosen_step(scene, **options) -> float:
-    """The step ``settle`` takes for ``scene`` (s)."""
-    return settle(scene, **options)[0][0].stepper_step
+    """The step ``settle`` takes for ``scene`` (s), searched once per scene and options."""
+    try:
+        key = (scene, tuple(sorted(options.items())))
+        hash(key)
+    except TypeError:  # an option that is not a value (none today): no memory
+        return settle(scene, **options)[0][0].stepper_step
+    if key not in _CHOSEN:
+        if len(_CHOSEN) > 256:
+            _CHOSEN.clear()
+        _CHOSEN[key] = settle(scene, **options)[0][0].stepper_step
+    return _CHOSEN[key]

@@ -224,7 +224,8 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         offtracks += [off] if math.isfinite(off) else []
     out["max_hitch_angle_deg"] = largest_angle if n > 1 else math.nan
     out["max_offtracking_m"] = max(offtracks, default=math.nan)  # NaN: no axle was ever beside the path
-    return {name: out.get(name, math.nan) for name in metric_names(n)}  # position_error_m: run_metrics
+    out["position_error_m"] = math.nan  # the run's, not the trace's: run_metrics sets it (accuracy.settle)
+    return {name: out[name] for name in metric_names(n)}
 
 
 def kernel_compiled() -> bool:

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..integrate import IntegrationError
 from ..physics.guards import ModelValidityError
+from ..validate import InputError
 from .accuracy import SAFETY, companion
 from .simulation import Simulation
 
@@ -37,15 +38,19 @@ class Companion:
     def __init__(self, sim: Simulation, options: dict):
         extra, self.factor, self.how = companion(sim, dict(options))
         extra.setdefault("fidelity", sim.level)
-        self.sim = Simulation(sim.scene, **extra)
         self.tolerance = sim.scene.integrator.tolerance
         self.distance = 0.0
-        self.stopped = ""  # why the companion stopped (its own guard), "" while it follows
+        self.stopped = ""  # why there is no estimate (the companion stopped or cannot run), "" while it follows
+        try:
+            self.sim: Simulation | None = Simulation(sim.scene, **extra)
+        except InputError as err:  # its half step past validate.MAX_STEPS_PER_TICK: the run goes on without
+            self.sim, self.stopped = None, f"no error estimate: the companion cannot run ({err})"
 
     @property
     def error(self) -> float:
-        """The estimated largest position error of the run so far, m."""
-        return SAFETY * self.factor * self.distance
+        """The estimated largest position error of the run so far, m; NaN once the companion has
+        stopped (or could not run): the rest of the run is not covered."""
+        return math.nan if self.stopped else SAFETY * self.factor * self.distance
 
     def follow(self, run: Simulation, out) -> None:
         """Advance one tick holding what ``run`` held over its last tick, and compare the points
@@ -60,14 +65,21 @@ class Companion:
             self.stopped = f"the estimate stopped at t = {self.sim.t:.3f} s: the companion run stopped ({err})"
             return
         d = float(np.max(np.linalg.norm(points(out) - points(self.sim.outputs()), axis=1)))
-        self.distance = max(self.distance, d) if math.isfinite(d) else self.distance
+        if not math.isfinite(d):
+            self.stopped = f"the estimate stopped at t = {self.sim.t:.3f} s: a point of a run is not finite"
+            return
+        self.distance = max(self.distance, d)
 
     def reset(self) -> None:
+        if self.sim is None:
+            return  # it cannot run: still no estimate
         self.sim.reset()
         self.distance = 0.0
         self.stopped = ""
 
     def line(self) -> str:
+        if self.stopped:
+            return self.stopped
         verdict = "within" if self.error <= self.tolerance else "OVER"
         return (f"estimated position error so far {self.error:.2g} m, {verdict} the tolerance {self.tolerance:g} m "
                 f"({self.how})")

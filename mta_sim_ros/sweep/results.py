@@ -147,7 +147,8 @@ def default_objectives(rows, count: int = 3) -> list[str]:
     (a field scene: one with total_time_h defined) or SCENE_OBJECTIVES that vary over its ok runs,
     then the defined constant ones; at least two where two metrics are defined at all."""
     preferred = FIELD_OBJECTIVES if defined(rows, "total_time_h") else SCENE_OBJECTIVES
-    pool = list(preferred) + [m for m in defined_metrics(rows) if m not in preferred]
+    # the runs' stated accuracy is not something a scheme is chosen for (it is the report's own line)
+    pool = list(preferred) + [m for m in defined_metrics(rows) if m not in preferred and m != "position_error_m"]
     chosen = [m for m in pool if varying(rows, m)][:count]
     chosen += [m for m in pool if defined(rows, m) and m not in chosen][:max(0, 2 - len(chosen))]
     return chosen

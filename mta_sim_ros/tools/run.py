@@ -198,8 +198,8 @@ def main(args: argparse.Namespace) -> int:
 def settle_step(args: argparse.Namespace, scene, options: dict):
     """The run's accuracy (run/accuracy.py: a companion run states its position error), and with
     no step given the step that meets the scene's tolerance, set into ``options``."""
-    run, stated = settle(scene, method=args.method, step=args.step, rate=args.rate, fidelity=options["fidelity"],
-                         split_kinks=options["split_kinks"])
+    run, stated = settle(scene, method=options["method"], step=args.step, rate=args.rate,
+                         fidelity=options["fidelity"], split_kinks=options["split_kinks"])
     options["step"] = run[0].step
     return stated
 
