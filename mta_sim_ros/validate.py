@@ -505,6 +505,22 @@ def output_file(path: str | os.PathLike, field: str) -> Path:
     return _checked_path(path, field, _file_problem, lambda p: p.parent, "a path that can be created")
 
 
+def distinct_output(path: Path, field: str, inputs) -> Path:
+    """``path`` (an output_file) checked against the command's ``inputs`` (paths, None skipped): none
+    of them may be the same file (the same device and inode where both exist, else the same resolved
+    path, so a link or another spelling of an input is caught too). Raises InputError."""
+    for source in inputs:
+        if source is None:
+            continue
+        try:
+            same = os.path.samefile(path, source)
+        except OSError:  # one of them does not exist (yet): compare where they would be
+            same = Path(path).resolve() == Path(source).resolve()
+        if same:
+            fail(field, show(str(path)), f"another file than the input {source}")
+    return path
+
+
 def output_folder(path: str | os.PathLike, field: str) -> Path:
     """``path`` checked as a folder to write into: not a file, no file on its way, writable
     (made if missing). Raises InputError."""
@@ -526,6 +542,17 @@ def write_together(paths: dict[str, Path], write: Callable[[dict[str, Path]], No
     finally:
         for tmp in temporary.values():
             tmp.unlink(missing_ok=True)
+
+
+def write_output(path: Path, write: Callable[[Path], None]) -> None:
+    """``write(a path)`` into the output ``path``: a regular file (or a new one) through its partial
+    file (write_together: a failure leaves it as it was); anything else that takes writes (a device
+    such as /dev/stdout, a pipe) directly, never replaced by a file. OSError when it fails."""
+    target = Path(path)
+    if target.exists() and not target.is_file():
+        write(target)
+        return
+    write_together({"out": target}, lambda tmp: write(tmp["out"]))
 
 
 def number_arg(rule: Rule = ANY, kind: type = float) -> Callable[[str], float]:

@@ -125,6 +125,17 @@ TOOL_FAULTS = [
     ("bench-sigkill-factor", ["bench", "sigkill", "--factors", "1", "nan"], ["argument --factors: nan", "in [0, 1000]"]),
     ("node-params-file-folder", ["node", "--params-file", "{tmp}/DIR"], ["file: unreadable"]),
     ("no-command", ["fly"], ["argument COMMAND: invalid choice: 'fly'"]),
+    ("equations-onto-its-train", ["equations", "{tmp}/train.yaml", "--out", "{tmp}/train.yaml"],
+     ["--out: ", "another file than the input", "train.yaml"]),
+    ("equations-onto-a-link-to-it", ["equations", "{tmp}/train.yaml", "--out", "{tmp}/link.yaml"],
+     ["--out: ", "link.yaml", "another file than the input"]),
+    ("equations-onto-the-scenes-train", ["equations", "{tmp}/short.yaml", "--out", "{tmp}/train.yaml"],
+     ["--out: ", "another file than the input"]),
+    ("linearize-into-a-folder", ["linearize", "{tmp}/train.yaml", "--out", "{tmp}/DIR/"],
+     ["--out: ", "a file name prefix", "not a folder"]),
+    ("linearize-a-folder", ["linearize", "{tmp}/train.yaml", "--out", "{tmp}/DIR"], ["--out: ", "not a folder"]),
+    ("linearize-empty", ["linearize", "{tmp}/train.yaml", "--out", ""], ["--out: ''", "a file name prefix"]),
+    ("linearize-onto-its-train", ["linearize", "{tmp}/t.md", "--out", "{tmp}/t"], ["--out: ", "t.md", "the input"]),
 ]
 
 
@@ -137,7 +148,30 @@ def bag(tmp_path_factory) -> Path:
 @pytest.mark.parametrize("case,args,expected", TOOL_FAULTS, ids=[c[0] for c in TOOL_FAULTS])
 def test_a_bad_argument_of_any_tool_is_one_line_and_exit_2(place, bag, case, args, expected):
     before = bag.read_bytes()
+    inputs = trains_in(place)  # a train file (and a link to it, and one named t.md) a tool reads
     args = [a.replace("{tmp}", str(place)).replace("{bag}", str(bag)) for a in args]
     assert_refused(mta(*args, cwd=place, timeout=60), *expected)
     assert bag.read_bytes() == before
-    assert written(place) == set()
+    assert written(place) == set(inputs)
+    assert all((place / name).read_bytes() == text for name, text in inputs.items())  # none written over
+
+
+def trains_in(place: Path) -> dict[str, bytes]:
+    """The default train copied into ``place`` as train.yaml and t.md, link.yaml a link to train.yaml,
+    and short.yaml a scene naming train.yaml: {name: bytes} of the files (the link counted once)."""
+    text = (CONFIG / "trains" / "default.yaml").read_bytes()
+    (place / "train.yaml").write_bytes(text)
+    (place / "t.md").write_bytes(text)
+    (place / "link.yaml").symlink_to(place / "train.yaml")
+    scene = (CONFIG / "scenes" / "straight_pass.yaml").read_text().replace("../trains/default.yaml", "train.yaml")
+    (place / "short.yaml").write_text(scene)
+    return {"train.yaml": text, "t.md": text, "link.yaml": text}
+
+
+def test_a_write_error_of_equations_is_one_line_and_no_device_is_replaced(place):
+    """/dev/full takes the write and fails it (ENOSPC): one line, exit 1, and /dev/full is still the
+    device (a partial file renamed onto it would have replaced it for root)."""
+    trains_in(place)
+    done = mta("equations", str(place / "train.yaml"), "--out", "/dev/full", cwd=place, timeout=60)
+    assert_refused(done, "--out /dev/full cannot be written", "No space left on device", code=1)
+    assert Path("/dev/full").is_char_device()

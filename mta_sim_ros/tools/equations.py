@@ -8,8 +8,9 @@ model's own code, so what is printed is what the simulator computes.
 from __future__ import annotations
 
 import argparse
+import sys
 
-from ..validate import output_file, path_arg
+from ..validate import distinct_output, output_file, path_arg, write_output
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,13 +26,19 @@ def main(args: argparse.Namespace) -> int:
     from ..physics.loader import load_file
     from ..symbolic.equations import build, render
 
-    loaded = load_file(resolve_config_path(args.train))
+    source = resolve_config_path(args.train)
+    loaded = load_file(source)
     train = loaded.train if isinstance(loaded, spec.Scene) else loaded
+    if args.out:  # before any work: never the train or scene it reads
+        distinct_output(args.out, "--out", (source, train.source))
     text = render(build(train), args.format, args.numbers)
-    if args.out:
-        with open(args.out, "w") as f:
-            f.write(text + "\n")
-        print(args.out)
-    else:
+    if not args.out:
         print(text)
+        return 0
+    try:
+        write_output(args.out, lambda path: path.write_text(text + "\n"))
+    except OSError as err:  # a full disk, a device that takes no file: the output is as it was
+        print(f"mta equations: --out {args.out} cannot be written ({err.strerror or err})", file=sys.stderr)
+        return 1
+    print(args.out)
     return 0

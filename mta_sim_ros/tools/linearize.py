@@ -14,10 +14,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import sys
 
 import numpy as np
 
-from ..validate import Range, fail, number_arg, output_file, show
+from ..validate import Range, distinct_output, fail, number_arg, output_file, show, write_together
 
 SPEED = Range.of(-100.0, 100.0, "m/s")
 STEERING = Range.of(-math.pi / 2, math.pi / 2, "rad")
@@ -31,6 +33,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help="write PREFIX.md, PREFIX.json and PREFIX.npz too")
 
 
+def outputs(prefix: str, inputs) -> dict:
+    """PREFIX.md, .json and .npz, checked before any work: PREFIX names files (not a folder, not
+    ending in a separator: 'adir/' would write adir/.md), each writable and none an input."""
+    if not prefix or prefix.endswith(("/", os.sep)) or os.path.isdir(prefix) or not os.path.basename(prefix):
+        fail("--out", show(prefix), "a file name prefix (PREFIX.md, PREFIX.json, PREFIX.npz are written), not a folder")
+    return {suffix: distinct_output(output_file(f"{prefix}.{suffix}", "--out"), "--out", inputs)
+            for suffix in ("md", "json", "npz")}
+
+
 def main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
     from ..physics import spec
@@ -38,7 +49,8 @@ def main(args: argparse.Namespace) -> int:
     from ..physics.steady import SteadyStateError
     from ..symbolic.linear import linearize, markdown
 
-    loaded = load_file(resolve_config_path(args.train))
+    source = resolve_config_path(args.train)
+    loaded = load_file(source)
     train = loaded.train if isinstance(loaded, spec.Scene) else loaded
     if args.speed == 0.0:
         fail("--speed", show(args.speed), "nonzero: a train standing still has no motion to linearize about")
@@ -50,7 +62,7 @@ def main(args: argparse.Namespace) -> int:
             fail("--steering", show(args.steering), f"within the train's max_angle {train.actuator.max_angle:.4g} rad")
     elif args.steering not in (None, 0.0):
         fail("--steering", show(args.steering), "left out for --about straight")
-    out = {suffix: output_file(f"{args.out}.{suffix}", "--out") for suffix in ("md", "json", "npz")} if args.out else {}
+    out = outputs(args.out, (source, train.source)) if args.out is not None else {}
     try:
         model = linearize(train, args.about, args.speed, args.steering or 0.0)
     except SteadyStateError as err:
@@ -58,10 +70,18 @@ def main(args: argparse.Namespace) -> int:
     text = markdown(model, train)
     print(text, end="")
     if out:
-        out["md"].write_text(text)
-        out["json"].write_text(json.dumps({"train": train.name, **model.as_dict()}, indent=1) + "\n")
-        np.savez(out["npz"], A=model.A, B=model.B, eigenvalues=model.eigenvalues, states=np.array(model.states),
-                 point=model.point, speed=model.speed, steering=model.steering)
+        def write(tmp: dict) -> None:
+            tmp["md"].write_text(text)
+            tmp["json"].write_text(json.dumps({"train": train.name, **model.as_dict()}, indent=1) + "\n")
+            with open(tmp["npz"], "wb") as stream:
+                np.savez(stream, A=model.A, B=model.B, eigenvalues=model.eigenvalues, states=np.array(model.states),
+                         point=model.point, speed=model.speed, steering=model.steering)
+
+        try:
+            write_together(out, write)  # all three or none
+        except OSError as err:
+            print(f"mta linearize: --out {args.out} cannot be written ({err.strerror or err})", file=sys.stderr)
+            return 1
         for path in out.values():
             print(path)
     return 0
