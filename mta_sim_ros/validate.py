@@ -544,6 +544,25 @@ def write_together(paths: dict[str, Path], write: Callable[[dict[str, Path]], No
             tmp.unlink(missing_ok=True)
 
 
+def finite_or_none(value):
+    """``value`` with every float that is not finite (NaN, inf) made None, through dicts, lists and
+    tuples: what a JSON reader takes (JSON has no NaN; null says 'not measured')."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(v) for v in value]
+    return value
+
+
+def json_text(value, indent: int | None = 2) -> str:
+    """``value`` as strict JSON (non-finite numbers null: finite_or_none), ending in a newline."""
+    import json
+
+    return json.dumps(finite_or_none(value), indent=indent, allow_nan=False) + "\n"
+
+
 def write_output(path: Path, write: Callable[[Path], None]) -> None:
     """``write(a path)`` into the output ``path``: a regular file (or a new one) through its partial
     file (write_together: a failure leaves it as it was); anything else that takes writes (a device

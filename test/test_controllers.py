@@ -367,3 +367,20 @@ def test_free_running_is_unchanged_by_the_lockstep_machinery(tmp_path):
     assert r.firings(3) == [1, 1, 1]
     r.s.close()
     np.testing.assert_equal(r.s.sim.ticks, 3)
+
+
+def test_a_report_of_a_run_that_measured_nothing_is_strict_json():
+    """An example controller interrupted before its first sample has figures of NaN (max, RMS of
+    nothing): the --report writer makes them null, so any JSON reader takes the file."""
+    import json
+
+    from mta_sim_ros.validate import json_text
+
+    figures = {"samples": 0, "max_m": math.nan, "rms_m": math.nan, "gain": [1.0, math.inf], "centre": None}
+    text = json_text(figures)
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+
+    parsed = json.loads(text, parse_constant=refuse)  # NaN, Infinity are not JSON
+    assert parsed == {"samples": 0, "max_m": None, "rms_m": None, "gain": [1.0, None], "centre": None}

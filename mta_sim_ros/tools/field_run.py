@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..validate import EXIT_INPUT, InputError, Range, fail, number_arg, output_folder, show
+from ..validate import EXIT_INPUT, InputError, Range, fail, finite_or_none, number_arg, output_folder, show
 
 if TYPE_CHECKING:
     from ..controllers.implement.work import Work
@@ -209,7 +209,7 @@ def metrics_document(work: Work) -> dict:
             "figures": {k: v if math.isfinite(v) else None for k, v in result.values.items()},
             "excursions": [dataclasses.asdict(e) for e in result.excursions],
             "timings_s": work.timings, "plan_notes": list(plan.notes),
-            "accuracy": {"position_error_m": work.accuracy.error, "estimate": work.accuracy.how,
+            "accuracy": {"position_error_m": finite_or_none(work.accuracy.error), "estimate": work.accuracy.how,
                          "line": work.accuracy.line()},
             "controller": {"speeds_m_s": list(run.controller.speeds), "lead_s": run.controller.lead,
                            "forward_angle_deg": math.degrees(run.controller.forward_angle),

@@ -15,6 +15,7 @@ import dataclasses
 import signal
 import sys
 import time
+from pathlib import Path
 
 import rclpy
 import rclpy.clock
@@ -127,8 +128,9 @@ def parse_params(items: list[str]) -> dict[str, float]:
 
 def spin_and_report(make_node, ros_args: list[str], report: str | None = None) -> int:
     """``spin_until_done``, then the node's ``figures`` written as JSON to ``report`` (if given):
-    what the example controllers (follow, reverse) measured."""
-    import json
+    what the example controllers (follow, reverse) measured; a figure not measured (no sample: an
+    interrupted run) is null, not NaN, and a report that cannot be written is one line, exit 1."""
+    from ..validate import json_text, write_output
 
     holder = {}
 
@@ -138,8 +140,12 @@ def spin_and_report(make_node, ros_args: list[str], report: str | None = None) -
 
     code = spin_until_done(make, ros_args)
     if report and "node" in holder:
-        with open(report, "w") as f:
-            json.dump(holder["node"].figures, f, indent=2)
+        text = json_text(holder["node"].figures)
+        try:
+            write_output(Path(report), lambda path: path.write_text(text))
+        except OSError as err:
+            print(f"mta: --report {report} cannot be written ({err.strerror or err})", file=sys.stderr)
+            return code or 1
     return code
 
 
