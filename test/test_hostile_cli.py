@@ -136,6 +136,11 @@ TOOL_FAULTS = [
     ("linearize-a-folder", ["linearize", "{tmp}/train.yaml", "--out", "{tmp}/DIR"], ["--out: ", "not a folder"]),
     ("linearize-empty", ["linearize", "{tmp}/train.yaml", "--out", ""], ["--out: ''", "a file name prefix"]),
     ("linearize-onto-its-train", ["linearize", "{tmp}/t.md", "--out", "{tmp}/t"], ["--out: ", "t.md", "the input"]),
+    ("sweep-workers-past-the-cpus", ["sweep", str(CONFIG / "sweeps" / "hitching.yaml"), "--workers", "100000"],
+     ["--workers: 100000", "at most", "CPUs this process may use"]),
+    ("sweep-out-empty", ["sweep", str(CONFIG / "sweeps" / "hitching.yaml"), "--out", ""], ["--out: ''", "not empty"]),
+    ("sweep-scheduler-empty", ["sweep", str(CONFIG / "sweeps" / "hitching.yaml"), "--scheduler", ""],
+     ["--scheduler: ''", "not empty"]),
 ]
 
 

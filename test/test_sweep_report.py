@@ -387,3 +387,10 @@ def test_export_refuses_what_it_cannot_export(grid, tmp_path):
     with pytest.raises(InputError, match=r"^--spec: .* the spec changed since the sweep"):
         export(folder, 0, tmp_path / "x.yaml", spec_path=changed)
     assert not (tmp_path / "x.yaml").exists()
+    # never over a file the spec reads: its base train, a scene, the spec itself (each left as it was)
+    root = spec_path.parent.parent
+    for own in (root / "trains" / "default.yaml", root / "scenes" / "headland_turn.yaml", spec_path):
+        before = own.read_bytes()
+        with pytest.raises(InputError, match=r"^--out: .* must be another file than the input"):
+            export(folder, 0, own)
+        assert own.read_bytes() == before

@@ -63,7 +63,9 @@ def export(folder: str | os.PathLike, run, out: str | os.PathLike, spec_path: st
              "another: a file the spec names changed since the sweep)")
     if "name" not in train_data:
         train_data = {"name": train.name, **train_data}
-    out = validate.output_file(out, "--out")
+    inputs = [spec.source, spec.train_source, *(src for _, _, src in spec.scenes),
+              *(src for _, src in spec.train_files.values())]  # never written over: a spec reads them
+    out = validate.distinct_output(validate.output_file(out, "--out"), "--out", inputs)
     name = sweep_name(folder)
     header = [f"Train of scheme {index} of sweep {name} (results {folder}, run {int(row['run'])}, "
               f"scene {row['scene']}, verdict {row['verdict']}), exported by mta_sim_ros.sweep.export.",
@@ -76,7 +78,8 @@ def export(folder: str | os.PathLike, run, out: str | os.PathLike, spec_path: st
         scene_values = ", ".join(f"{k} = {_shown(v)}" for f, (k, v) in zip(spec.factors, labels.items())
                                  if f.target == "scene")
         for scene_name, data, scene_source in scenes:
-            path = validate.output_file(out.with_name(f"{out.stem}.{file_part(scene_name)}.yaml"), "--out")
+            path = validate.distinct_output(validate.output_file(
+                out.with_name(f"{out.stem}.{file_part(scene_name)}.yaml"), "--out"), "--out", inputs)
             data = {"name": scene_name, **data} if "name" not in data else data
             data["train"] = os.path.relpath(out.resolve(), path.resolve().parent)
             if spec.fidelity != "auto":

@@ -93,6 +93,11 @@ def run_main(args: argparse.Namespace) -> int:
     from ..sweep import engine, spec as sweep_spec
     from ..validate import output_folder
 
+    for option, value in (("--out", args.out), ("--scheduler", args.scheduler), ("--scheduler-file", args.scheduler_file)):
+        if value is not None and not value.strip():  # not a silent fall-back to the default
+            fail(option, show(value), "not empty (left out, it takes its default)")
+    if args.workers is not None:
+        check_workers(args.workers)
     spec = sweep_spec.load(resolve_config_path(args.target))  # a path, or a name in the config folder
     out = output_folder(args.out or os.path.join("sweeps", spec.name), "--out")
     schemes = sweep_spec.scheme_count(spec)
@@ -113,6 +118,34 @@ def run_main(args: argparse.Namespace) -> int:
     if spec.bags:
         for path in write_bags(spec, out):
             print(path)
+    return 0
+
+
+#: a worker's resident memory at its peak, MiB (docs/benchmarks.md: 282 MiB measured, rounded up)
+WORKER_MIB = 320
+
+
+def check_workers(workers: int) -> None:
+    """``--workers`` within what this machine can run: at most one per CPU this process may use, and
+    as many as its available memory holds at WORKER_MIB each (Linux /proc/meminfo; unknown: the
+    CPUs decide). Raises InputError naming both."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    memory = available_mib()
+    most = max(1, min(cpus, memory // WORKER_MIB if memory else cpus))
+    if workers > most:
+        held = f", {memory / 1024:.1f} GiB available at {WORKER_MIB} MiB a worker" if memory else ""
+        fail("--workers", show(workers), f"at most {most} ({cpus} CPUs this process may use{held})")
+
+
+def available_mib() -> int:
+    """MemAvailable of /proc/meminfo, MiB; 0 where it cannot be read."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) // 1024
+    except (OSError, ValueError, IndexError):
+        pass
     return 0
 
 
