@@ -225,6 +225,31 @@ def check_ros_args(argv: list[str]) -> None:
         read_params_file(path, node)
 
 
+def override_problem(argv: list[str]) -> str:
+    """'' if every parameter override ``-p NAME:=VALUE`` after ``--ros-args`` in ``argv`` is one rcl
+    can parse (NAME:=VALUE, VALUE one YAML value), else the first fault in one line. Checked here,
+    before rclpy.init: rcl's own parser says it in a log line and an exception of its own."""
+    import yaml
+
+    ros = False
+    for i, arg in enumerate(argv):
+        if arg == "--ros-args":
+            ros = True
+        elif arg == "--":
+            ros = False
+        elif ros and arg in ("-p", "--param"):
+            rule = argv[i + 1] if i + 1 < len(argv) else ""
+            name, sep, value = rule.partition(":=")
+            if not sep or not name:
+                return f"--ros-args {arg} {validate.show(rule)}: must be NAME:=VALUE"
+            try:
+                yaml.safe_load(value)
+            except yaml.YAMLError as err:
+                reason = str(getattr(err, "problem", "") or "not YAML")
+                return f"--ros-args {arg} {validate.show(rule)}: the value must be one YAML value ({reason})"
+    return ""
+
+
 def argument(name: str):
     """An argparse ``type`` for a command-line option that sets numeric parameter ``name``: its
     range here, so a command and the node refuse the same values."""

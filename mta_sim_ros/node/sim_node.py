@@ -58,13 +58,15 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from ..messages.topics import BAG_TOPICS, COMMAND_TOPICS, LATCHED_TOPICS, MESSAGE_COMMANDS, WATCHDOG_TOPIC
 from . import ros_msgs
-from .params import PARAMS, ConfigError, Param, check_ros_args
+from ..validate import one_line
+from .params import PARAMS, ConfigError, Param, check_ros_args, override_problem
 from .ros_msgs import QOS
 from .run_session import RunSession
 from .timing import reserve_cpu
@@ -238,7 +240,15 @@ def main(argv: list[str] | None = None, profile=None) -> int:
     except ConfigError as err:
         print(f"sim_node: {err}", file=sys.stderr)
         return 2
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    problem = override_problem(argv)  # a -p override rcl cannot parse, likewise
+    if problem:
+        print(f"sim_node: {problem}", file=sys.stderr)
+        return 2
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as err:  # any other ROS argument rcl refuses
+        print(f"sim_node: --ros-args: {one_line(str(err))}", file=sys.stderr)
+        return 2
     stop = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: stop.append(signum))

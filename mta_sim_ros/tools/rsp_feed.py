@@ -39,11 +39,15 @@ RETRY_S = 0.5
 ANSWER_TIMEOUT_S = 5.0
 
 
+#: the longest target: '/<namespace>/<target>/describe_parameters' must stay within rcl's 247 characters
+MAX_TARGET = 160
 #: a ROS node name, relative or absolute (rcl's rule for names: tokens of letters, digits and _,
 #: not starting with a digit, joined by '/')
 NODE_NAME = Rule("a node name: letters, digits and _ (not starting with a digit), parts joined by '/', "
-                 "a leading '/' for an absolute name",
-                 lambda v: re.fullmatch(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", v) is not None)
+                 f"a leading '/' for an absolute name, at most {MAX_TARGET} characters (its parameter services' "
+                 "names must fit rcl's 247)",
+                 lambda v: len(v) <= MAX_TARGET
+                 and re.fullmatch(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", v) is not None)
 
 
 def node_name(text: str) -> str:
