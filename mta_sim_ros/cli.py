@@ -151,17 +151,43 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def ros_missing(err: ModuleNotFoundError) -> bool:
+    """Whether ``err`` is a ROS 2 package this install lacks (rclpy, a message package, ...)."""
+    top = (err.name or "").split(".")[0]
+    return top in ("rclpy", "rcl_interfaces", "builtin_interfaces", "rosidl_runtime_py", "rosbag2_py") or \
+        top.endswith(("_msgs", "_srvs", "_interfaces"))
+
+
+def missing_ros(command: str | None, err: ModuleNotFoundError) -> int:
+    """One line for a ROS command run where ROS 2 (or one of its message packages) is missing."""
+    print(f"mta {command or ''}: needs ROS 2 Jazzy's {err.name} ({err}): source /opt/ros/jazzy/setup.bash, "
+          "or make venv (README: the ROS packages as wheels, tf2_msgs and ackermann_msgs built into it); "
+          "mta run, check, analyze, equations, linearize, sweep and field need no ROS", file=sys.stderr)
+    return 1
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # everything from --ros-args on belongs to ROS (as for any ROS executable)
     split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
-    args = build_parser(selected_command(argv[:split])).parse_args(argv[:split])
+    selected = selected_command(argv[:split])
+    try:
+        parser = build_parser(selected)  # a ROS tool imports rclpy here
+    except ModuleNotFoundError as err:
+        if not ros_missing(err):
+            raise
+        return missing_ros(selected, err)
+    args = parser.parse_args(argv[:split])
     args.ros_args = argv[split:]
     try:
         return args.func(args)
     except InputError as err:  # the commands say their own; this is the net under them
         print(f"mta {args.command}: {err}", file=sys.stderr)
         return EXIT_INPUT
+    except ModuleNotFoundError as err:  # the node's own imports (mta node), a message package missing
+        if not ros_missing(err):
+            raise
+        return missing_ros(args.command, err)
     except KeyboardInterrupt:  # Ctrl-C: what was written is closed or removed by the command's own finally
         print(f"mta {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -186,3 +186,29 @@ def test_a_write_error_of_equations_is_one_line_and_no_device_is_replaced(place)
     done = mta("equations", str(place / "train.yaml"), "--out", "/dev/full", cwd=place, timeout=60)
     assert_refused(done, "--out /dev/full cannot be written", "No space left on device", code=1)
     assert Path("/dev/full").is_char_device()
+
+
+WITHOUT_ROS = [("rclpy", [c]) for c in ("node", "reverse", "follow", "rsp_feed", "session", "maneuver")] + [
+    ("tf2_msgs", ["node"]), ("tf2_msgs", ["session"])]  # the node's /tf: a message package built into the venv
+
+
+@pytest.mark.parametrize("missing,command", WITHOUT_ROS, ids=[f"{m}-{c[0]}" for m, c in WITHOUT_ROS])
+def test_a_ros_command_without_ros_says_so_in_one_line(tmp_path, missing, command):
+    """An install without ROS 2 (or without a message package built into it): a package of that
+    name first on the path that cannot be imported stands in for its absence. One line naming it
+    and what to do, exit 1, nothing started."""
+    import os
+    import subprocess
+    import sys
+
+    from dds import ros_env
+
+    shadow = tmp_path / missing
+    shadow.mkdir()
+    (shadow / "__init__.py").write_text(f"raise ModuleNotFoundError(\"No module named '{missing}'\", name='{missing}')\n")
+    env = ros_env()
+    env["PYTHONPATH"] = os.pathsep.join((str(tmp_path), env["PYTHONPATH"]))
+    done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", *command], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=60, env=env)
+    line = assert_refused(done, f"needs ROS 2 Jazzy's {missing}", "make venv", code=1)
+    assert line.startswith(f"mta {command[0]}: ")

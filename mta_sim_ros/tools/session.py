@@ -40,6 +40,11 @@ def _mta(*args: str, **kwargs) -> subprocess.Popen:
 
 
 def main(args: argparse.Namespace) -> int:
+    # its two processes need ROS and the node the message packages built into the venv: without
+    # them one line here (cli.missing_ros), before either starts
+    import rclpy  # noqa: F401
+    import tf2_msgs.msg  # noqa: F401
+
     from ..config import resolve_config_path
     from ..physics.loader import load_scene
 
