@@ -94,6 +94,9 @@ def main(args: argparse.Namespace) -> int:
         return 2
     path = field_path(args.passes, args.length, args.spacing, x0=ini.x, y0=ini.y)
     settle = args.settle if args.settle is not None else 2.0 * train_length(scene.train)
+    if settle >= args.length:  # every straight pass would be left out: it would measure nothing
+        fail("--settle", show(settle), f"less than a pass's --length {args.length:g} m (each pass is measured "
+             "after its first --settle m; the default is twice the train's length)")
     follower = Follower(scene.train, path, args.lookahead, settle, scene.train.actuator.max_angle)
     return spin_and_report(lambda: FollowNode(follower), args.ros_args, args.report)
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..validate import Range, number_arg, output_file, path_arg
+from ..validate import Range, fail, number_arg, output_file, path_arg, show
 
 SPEED = Range.of(-20.0, -0.05, "m/s")
 DISTANCE = Range.of(1.0, 10000.0, "m")
@@ -48,6 +48,9 @@ def main(args: argparse.Namespace) -> int:
     from ..physics.loader import load_scene
     from .maneuver import spin_and_report
 
+    if args.settle >= args.distance:  # it would measure nothing
+        fail("--settle", show(args.settle), f"less than --distance {args.distance:g} m (the error is measured "
+             "from --settle m of reversing to --distance m)")
     scene = load_scene(resolve_config_path(args.scene))  # a bad scene: cli.main says it in one line, exit 2
     train = scene.train
     weights = (args.q_offset, args.q_hitch, args.q_heading, args.r)
