@@ -25,10 +25,18 @@ class Parser(argparse.ArgumentParser):
 
 
 def check_main(args: argparse.Namespace) -> int:
+    """The files by the loader's rules, and what a run builds from them beyond those: the robot
+    model (its frames and joints named after the carts), so check refuses what run, urdf and the
+    node would."""
     from .config import resolve_config_path
+    from .messages.urdf import robot_model
     from .physics.loader import check_files
+    from .physics.spec import Scene
 
-    return check_files([resolve_config_path(f) for f in args.files])
+    def built(loaded) -> None:
+        robot_model(loaded.train if isinstance(loaded, Scene) else loaded)
+
+    return check_files([resolve_config_path(f) for f in args.files], built)
 
 
 def urdf_main(args: argparse.Namespace) -> int:

@@ -268,3 +268,37 @@ def test_a_bag_without_the_record_is_exit_1_as_documented(run_bag, tmp_path):
         out.write("/traction_power", {"data": 1.0}, 0)
     assert_refused(mta("replay", bag, "--resimulate"), "no metadata record mta_sim_ros", code=1)
     assert_refused(mta("analyze", bag, "-o", tmp_path / "r"), "no metadata record 'mta_sim_ros'", code=1)
+
+
+NAMES = ["base_link", "odom", "has space", "tab\there", "new\nline", 'a "quote"', "\x07bell", "n" * 10_000,
+         "air_cart_hitch", "tractor_front_wheels"]
+
+
+@pytest.mark.parametrize("name", NAMES, ids=range(len(NAMES)))
+def test_check_refuses_the_cart_names_a_run_refuses(tmp_path, name, capsys):
+    """One rule for a cart's name: mta check refuses exactly what mta urdf (and so mta run and the
+    node, which build the same robot model) refuses; here the seeder renamed, beside carts named
+    tractor and air_cart (air_cart_hitch and tractor_front_wheels are frames those make)."""
+    import yaml
+
+    from mta_sim_ros import cli
+
+    data = yaml.safe_load((CONFIG / "trains" / "default.yaml").read_text())
+
+    def renamed(o):
+        if isinstance(o, dict):
+            return {k: renamed(v) for k, v in o.items()}
+        if isinstance(o, list):
+            return [renamed(v) for v in o]
+        return name if o == "seeder" else o
+
+    train = tmp_path / "train.yaml"
+    train.write_text(yaml.safe_dump(renamed(data)))
+    scene = tmp_path / "scene.yaml"
+    scene.write_text((CONFIG / "scenes" / "straight_pass.yaml").read_text().replace("../trains/default.yaml",
+                                                                                     str(train)))
+    checked = cli.main(["check", str(train), str(scene)])
+    urdf = cli.main(["urdf", "--scene", str(scene)])
+    err = capsys.readouterr().err
+    assert urdf == 2 and checked == 2, err  # every one of them breaks the frames' rule
+    assert all(line.startswith(("error: ", "mta urdf: ")) for line in err.splitlines()), err

@@ -376,13 +376,17 @@ def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
     fail("file", f"keys {show(list(data))}", "top level", source, "a train (with carts) or a scene (with train)")
 
 
-def check_files(paths: Iterable[Union[str, os.PathLike]]) -> int:
-    """Check each file, print ``ok: PATH`` or ``error: MESSAGE``; exit code 0, or 2 on a fault."""
+def check_files(paths: Iterable[Union[str, os.PathLike]], also: Optional[Callable] = None) -> int:
+    """Check each file, print ``ok: PATH`` or ``error: MESSAGE``; exit code 0, or 2 on a fault.
+    ``also(loaded)``: what else a run builds from it (the command's: the robot model's frames),
+    raising InputError where it cannot, so check refuses what a run would."""
     status = 0
     for path in paths:
         try:
-            load_file(path)
-        except SpecError as error:
+            loaded = load_file(path)
+            if also is not None:
+                also(loaded)
+        except validate.InputError as error:
             print(f"error: {error}", file=sys.stderr)
             status = 2
         else:
