@@ -256,6 +256,36 @@ def test_resuming_into_the_results_of_another_spec_is_refused(serial, tmp_path, 
     assert len(err.splitlines()) == 1 and "--out" in err and "another spec" in err
 
 
+def test_resuming_after_the_base_train_changed_is_refused(tmp_path, capsys):
+    """The same spec text, its base train changed between two calls (as `mta sweep export -o` onto
+    it once did): the second call refuses in one line naming the train, and leaves the results as
+    they were; with the train as it was, it resumes (nothing left to run)."""
+    train = tmp_path / "train.yaml"
+    train.write_text(Path(TRAIN).read_text())
+    spec = write_spec(tmp_path, BASE.replace(str(TRAIN), str(train)))
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--serial", "--quiet"]) == 0
+    before = {p.name: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    original = train.read_text()
+    train.write_text(original.replace("mass: 16000", "mass: 17000"))
+    capsys.readouterr()
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--serial", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "train changed since its runs" in err, err
+    assert {p.name: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    train.write_text(original)
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--serial", "--quiet"]) == 0
+
+
+def test_a_file_where_the_parts_folder_goes_is_refused_in_one_line(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "parts").write_text("a file")
+    assert cli.main(["sweep", str(write_spec(tmp_path)), "--out", str(out), "--serial", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "parts is a folder (a file stands there)" in err, err
+
+
 def test_constraints_drop_schemes_before_they_run(tmp_path):
     text = BASE + "constraints:\n  - {quantity: total_length, max: 18}\n"
     spec = sweep_spec.load(write_spec(tmp_path, text))

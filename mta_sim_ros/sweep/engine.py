@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import logging
 import math
 import os
@@ -45,6 +46,20 @@ class EngineError(RuntimeError):
 DROPPED, REFUSED = "dropped", "refused"
 RESULTS, CSV, PARTS, SPEC_COPY = "results.parquet", "results.csv", "parts", "spec.yaml"
 SPEC_PATH = "spec_path.txt"  # where the spec was read (its relative paths are from its folder)
+INPUTS = "inputs.json"  # the digest of every input the runs read (input_digests): a resume must match it
+
+
+def input_digests(spec) -> dict[str, str]:
+    """{input: sha256} of what a sweep's runs read: the spec's text, the base train's and each
+    scene's data as loaded, each train choice's, the package's version. The data, not the bytes:
+    a comment changes no result."""
+    def digest(value) -> str:
+        return hashlib.sha256(json.dumps(value, sort_keys=True, default=str).encode()).hexdigest()
+
+    out = {"spec": digest(spec.text), "train": digest(spec.train_data), "package_version": __version__}
+    out.update({f"scene {name}": digest(data) for name, data, _ in spec.scenes})
+    out.update({f"train choice {label}": digest(data) for label, (data, _) in spec.train_files.items()})
+    return out
 
 
 def columns(spec) -> list[tuple[str, str]]:
@@ -169,11 +184,32 @@ class ResultStore:
             if copy.read_text(encoding="utf-8", errors="replace") != spec.text:
                 fail("--out", show(str(self.folder)), f"a folder of results of this spec, or a new one: its "
                      f"{SPEC_COPY} is another spec (resuming runs only what the same spec has left)")
+            self._same_inputs()
         else:
             self.folder.mkdir(parents=True, exist_ok=True)
             _write_atomic(copy, spec.text.encode())
+            _write_atomic(self.folder / INPUTS, json.dumps(input_digests(spec), indent=1).encode())
         _write_atomic(self.folder / SPEC_PATH, (os.path.abspath(spec.source) + "\n").encode())
+        if self.parts.exists() and not self.parts.is_dir():
+            fail("--out", show(str(self.folder)), f"a results folder whose {PARTS} is a folder (a file stands there)")
         self.parts.mkdir(exist_ok=True)
+
+    def _same_inputs(self) -> None:
+        """A resume reads the same inputs as the runs already there (input_digests), else it would mix
+        results of two trains in one file: refused in one line naming what changed."""
+        path = self.folder / INPUTS
+        try:
+            recorded = json.loads(path.read_text())
+        except (OSError, ValueError):
+            recorded = None
+        now = input_digests(self.spec)
+        if not isinstance(recorded, dict):
+            fail("--out", show(str(self.folder)), f"a folder of results whose {INPUTS} says what they were run "
+                 "from (it is missing or unreadable: resume into a new folder)")
+        changed = sorted(k for k in set(now) | set(recorded) if now.get(k) != recorded.get(k))
+        if changed:
+            fail("--out", show(str(self.folder)), "a folder of results run from the same inputs, or a new one: "
+                 f"{', '.join(changed)} changed since its runs (resuming would mix two trains' results)")
 
     def done(self, schemes: int) -> set[int]:
         """The schemes some part holds (all their scenes: a part holds whole schemes). A part that
