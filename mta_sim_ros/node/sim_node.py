@@ -58,7 +58,6 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
-from rclpy._rclpy_pybind11 import RCLError
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
@@ -246,7 +245,7 @@ def main(argv: list[str] | None = None, profile=None) -> int:
         return 2
     try:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except RCLError as err:  # any other ROS argument rcl refuses
+    except RuntimeError as err:  # any other ROS argument rcl refuses (rclpy's RCLError is one)
         print(f"sim_node: --ros-args: {one_line(str(err))}", file=sys.stderr)
         return 2
     stop = []

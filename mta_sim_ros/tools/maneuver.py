@@ -152,8 +152,7 @@ def spin_and_report(make_node, ros_args: list[str], report: str | None = None) -
 def spin_until_done(make_node, ros_args: list[str]) -> int:
     """Spin a node until its ``done`` flag is set or SIGINT/SIGTERM arrives. ROS arguments rcl
     cannot parse (a parameter override of bad YAML, ...) are one line and exit 2."""
-    from rclpy._rclpy_pybind11 import RCLError
-
+    
     from ..node.params import override_problem
     from ..validate import EXIT_INPUT, one_line
 
@@ -163,7 +162,7 @@ def spin_until_done(make_node, ros_args: list[str]) -> int:
         return EXIT_INPUT
     try:
         rclpy.init(args=["mta", *ros_args], signal_handler_options=SignalHandlerOptions.NO)
-    except RCLError as err:
+    except RuntimeError as err:  # rclpy's RCLError: a ROS argument rcl refuses
         print(f"mta: --ros-args {' '.join(ros_args[1:])}: {one_line(str(err))}", file=sys.stderr)
         return EXIT_INPUT
     stop = []
