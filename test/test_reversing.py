@@ -99,26 +99,13 @@ def test_without_the_controller_the_train_folds():
     assert "jackknife" in run.stopped and run.distance < 100.0
 
 
-@pytest.mark.dds
-@pytest.mark.parametrize("lockstep, radius", [(True, None), (False, None), (True, 50.0)],
-                         ids=["lockstep", "free-running", "lockstep-curve"])
-def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, probe, lockstep, radius):
-    """The node (recording; in lockstep, or free-running at 4x real time) and ``mta reverse`` as two
-    processes over DDS: the controller reports the seeder within 5 cm of the line over the last 25
-    of 45 m reversed, and the node's bag, read independently (rosbags), shows the same: the largest
-    |y| of B_n after 20 m."""
-    from dds import bags_in, read_bag, start_mta, start_node, stop, write_params
+def run_over_dds(tmp_path, probe, scene: dict, pacing: dict, *extra):
+    """``mta reverse`` and then the node (recording) as two processes over DDS until either ends:
+    (the controller's exit code, its output, its report); the node stopped with SIGTERM, exit 0."""
+    from dds import start_mta, start_node, stop, write_params
 
-    scene = yaml.safe_load(open(resolve_config_path("scenes/reversing.yaml")))
-    scene.update(train=str(resolve_config_path("trains/default.yaml")), steering={"maneuver": "straight"})
-    scene["initial"] = {"y": 0.3, "speed": -1.0, "hitch_angles_deg": [2, -2]}
-    extra = []
-    if radius is not None:  # on the steady reversing circle, 0.3 m outside it
-        scene["initial"] = curve_start(DEFAULT, reversing.design_curve(DEFAULT, -1.0, radius))
-        extra = ["--radius", radius]
     scene_path = tmp_path / "backing.yaml"
     scene_path.write_text(yaml.safe_dump(scene))
-    pacing = {"lockstep": True, "lockstep_timeout": 5.0} if lockstep else {"real_time_factor": 4.0}
     params = write_params(tmp_path / "p.yaml", scene_file=str(scene_path), bag_dir=str(tmp_path / "bags"),
                           publish_rate=50.0, record=True, **pacing)
     report = tmp_path / "reverse.json"
@@ -132,17 +119,42 @@ def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, probe, lockstep, radiu
         assert probe.spin_until(lambda: probe.node.count_publishers("/ackermann_cmd") > 0 or
                                 controller.poll() is not None, 120.0), "the controller did not start"
         node = start_node(params, tmp_path / "node.log")
-        assert probe.spin_until(lambda: controller.poll() is not None or node.poll() is not None, 240.0), \
-            "the controller did not finish"
-        output = controller.stdout.read()
-        assert controller.returncode == 0, output
-        assert "lateral error of 'seeder'" in output
+        finished = probe.spin_until(lambda: controller.poll() is not None or node.poll() is not None, 240.0)
+        assert finished, "the controller did not finish: " + (tmp_path / "node.log").read_text()[-2000:]
+        return controller.returncode, controller.stdout.read(), json.loads(report.read_text())
     finally:
         if controller.poll() is None:
             controller.kill()
             controller.wait()
         assert node is None or stop(node) == 0
-    figures = json.loads(report.read_text())
+
+
+def backing_scene(**changes) -> dict:
+    scene = yaml.safe_load(open(resolve_config_path("scenes/reversing.yaml")))
+    scene.update(train=str(resolve_config_path("trains/default.yaml")), steering={"maneuver": "straight"})
+    scene["initial"] = {"y": 0.3, "speed": -1.0, "hitch_angles_deg": [2, -2]}
+    scene.update(changes)
+    return scene
+
+
+@pytest.mark.dds
+@pytest.mark.parametrize("lockstep, radius", [(True, None), (False, None), (True, 50.0)],
+                         ids=["lockstep", "free-running", "lockstep-curve"])
+def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, probe, lockstep, radius):
+    """The node (recording; in lockstep, or free-running at 2x real time) and ``mta reverse`` as two
+    processes over DDS: the controller reports the seeder within 5 cm of the line over the last 25
+    of 45 m reversed, and the node's bag, read independently (rosbags), shows the same: the largest
+    |y| of B_n after 20 m."""
+    from dds import bags_in, read_bag
+
+    scene, extra = backing_scene(), []
+    if radius is not None:  # on the steady reversing circle, 0.3 m outside it
+        scene["initial"] = curve_start(DEFAULT, reversing.design_curve(DEFAULT, -1.0, radius))
+        extra = ["--radius", radius]
+    pacing = {"lockstep": True, "lockstep_timeout": 5.0} if lockstep else {"real_time_factor": 2.0}
+    code, output, figures = run_over_dds(tmp_path, probe, scene, pacing, *extra)
+    assert code == 0, output
+    assert "lateral error of 'seeder'" in output and figures["stopped"] is None
     assert figures["reversed_m"] >= 45.0 and figures["max_m"] < 0.05, figures
     assert figures["max_hitch_deg"] < 10.0
     [bag] = bags_in(tmp_path / "bags")
@@ -164,3 +176,22 @@ def test_mta_reverse_backs_the_node_up_over_dds(tmp_path, probe, lockstep, radiu
     assert len(after) > 100
     assert np.abs(error(after)).max() < 0.05
     assert np.abs(error(after)).max() == pytest.approx(figures["max_m"], abs=0.01)
+
+
+@pytest.mark.dds
+def test_mta_reverse_ends_when_the_node_halts(tmp_path, probe):
+    """A train whose hitches may bend 1.5 deg (started at +-1 deg, 0.3 m off the line) folds past
+    its limit while the controller brings it to the line: the node halts (its jackknife guard, ERROR
+    on /diagnostics), and ``mta reverse`` ends at once with what it measured and the node's reason in
+    its report, exit 1, instead of waiting for poses that will not come."""
+    train = yaml.safe_load(open(resolve_config_path("trains/default.yaml")))
+    for cart in train["carts"][1:]:
+        cart["max_hitch_angle_deg"] = 1.5
+    (tmp_path / "stiff.yaml").write_text(yaml.safe_dump(train))
+    scene = backing_scene(train=str(tmp_path / "stiff.yaml"))
+    scene["initial"]["hitch_angles_deg"] = [1, -1]
+    code, output, figures = run_over_dds(tmp_path, probe, scene, {"lockstep": True, "lockstep_timeout": 5.0})
+    assert code == 1, output
+    assert "the simulator halted: jackknife" in output, output
+    assert figures["stopped"].startswith("the simulator halted: jackknife"), figures
+    assert 0.0 < figures["reversed_m"] < 45.0 and 1.0 < figures["max_hitch_deg"] <= 1.6, figures

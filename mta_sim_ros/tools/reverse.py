@@ -11,8 +11,9 @@ heard (the train is taken to start on its steady circle), the error the last axl
 one message: one command a tick in lockstep). It measures the lateral error of the last cart's
 axle B_n from the line after ``--settle`` m, and stops the train (speed 0) once B_n has reversed
 ``--distance`` m; max and RMS error, the largest hitch angle and the steering are logged and, with
-``--report``, written as JSON. A train that folds stops the node's run (its jackknife guard):
-the controller then reports what it saw.
+``--report``, written as JSON. A train that folds stops the node's run (its jackknife guard): the
+controller hears the halt on /diagnostics, reports what it measured until then with the node's
+reason (``stopped``) and exits 1.
 """
 from __future__ import annotations
 

@@ -12,7 +12,8 @@ Publishes, latched (ros_msgs.LATCHED_QOS: transient local, keep last 1), in the 
 (nav_msgs/Path, a pose a route vertex, field/plan_io.path_message) and ``field_boundary``
 (visualization_msgs/MarkerArray: a LINE_STRIP for the outline, one per obstacle), and
 ``coverage`` (nav_msgs/OccupancyGrid, field/grid.py's values) every second of wall time and once
-at the end.
+at the end. A simulator that halts (its /diagnostics at ERROR, halt_watch.py) stops the run at
+once, with the node's reason; no pose for ``timeout`` wall seconds stops it too.
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ...field.grid import outlines
 from ...field.plan_io import path_message
 from ...node.ros_msgs import LATCHED_QOS, QOS
+from ..halt_watch import HaltWatch
 from .live import DONE, Follow
 
 #: wall s between two coverage grids
@@ -59,6 +61,7 @@ class FieldFollowNode(Node):
         self.figures: dict = {}
         self.exit_code = 0
         self.linger = LINGER
+        self.halt = HaltWatch(self)
         for msg_type, topic in ((PoseArray, "hitch_poses"), (JointState, "joint_states"), (Odometry, "odom")):
             self.create_subscription(msg_type, topic, lambda m, t=topic: self._on(t, m), QOS)
         self.plan_pub.publish(self._path())
@@ -68,6 +71,8 @@ class FieldFollowNode(Node):
 
     @property
     def done(self) -> bool:
+        if self.halt.reason and not self.follow.done:  # the node halted: no pose will come
+            self.follow.status, self.follow.reason = "stopped", self.halt.reason
         return self.follow.done
 
     def _on(self, topic: str, msg) -> None:

@@ -1,6 +1,7 @@
 """The ROS node of ``mta follow`` (``mta_follow``): follower.Follower over topics. It subscribes
 ``hitch_poses`` (the A_k and headings th_k, from each pose's position and yaw) and answers each
-pose with one ``steering_angle``."""
+pose with one ``steering_angle``. A simulator that halts ends the run (halt_watch.py): what was
+measured is reported, with the reason, and the command exits 1."""
 from __future__ import annotations
 
 import math
@@ -10,6 +11,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 
 from ...node.ros_msgs import QOS
+from ..halt_watch import HaltWatch
 from .follower import Follower
 
 
@@ -19,11 +21,13 @@ class FollowNode(Node):
         self.follower = follower
         self.pub = self.create_publisher(Float64, "steering_angle", QOS)
         self.create_subscription(PoseArray, "hitch_poses", self._on_poses, QOS)
+        self.halt = HaltWatch(self)
         self.figures: dict = {}
+        self.exit_code = 0
 
     @property
     def done(self) -> bool:
-        return self.follower.done
+        return self.follower.done or bool(self.halt.reason)
 
     def _on_poses(self, msg: PoseArray) -> None:
         if self.follower.done or len(msg.poses) != self.follower.train.n:
@@ -33,5 +37,9 @@ class FollowNode(Node):
         self.pub.publish(Float64(data=self.follower.steering(points, th)))
 
     def finish(self) -> None:
-        self.figures = self.follower.figures()
-        self.get_logger().info(self.follower.summary())
+        self.figures = {**self.follower.figures(), "stopped": self.halt.reason or None}
+        if self.halt.reason:
+            self.exit_code = 1
+            self.get_logger().error(f"{self.halt.reason}; until then: {self.follower.summary()}")
+        else:
+            self.get_logger().info(self.follower.summary())

@@ -2,7 +2,9 @@
 
 It subscribes ``hitch_poses`` (the A_k and headings th_k, from each pose's position and yaw) and
 ``applied_steering``, and answers each pose with one ``ackermann_cmd``: the steering command and
-the speed in one message, one command a tick in lockstep.
+the speed in one message, one command a tick in lockstep. A simulator that halts (the train
+folded: its /diagnostics at ERROR, halt_watch.py) ends the run: what was measured is reported, with
+the reason, and the command exits 1.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 
 from ...node.ros_msgs import QOS
+from ..halt_watch import HaltWatch
 from .controller import Reverser
 
 
@@ -24,11 +27,13 @@ class ReverseNode(Node):
         self.pub = self.create_publisher(AckermannDriveStamped, "ackermann_cmd", QOS)
         self.create_subscription(Float64, "applied_steering", self._on_steering, QOS)
         self.create_subscription(PoseArray, "hitch_poses", self._on_poses, QOS)
+        self.halt = HaltWatch(self)
         self.figures: dict = {}
+        self.exit_code = 0
 
     @property
     def done(self) -> bool:
-        return self.reverser.done
+        return self.reverser.done or bool(self.halt.reason)
 
     def _on_steering(self, msg) -> None:
         self.reverser.psi = msg.data
@@ -43,5 +48,9 @@ class ReverseNode(Node):
         self.pub.publish(out)
 
     def finish(self) -> None:
-        self.figures = self.reverser.figures()
-        self.get_logger().info(self.reverser.summary())
+        self.figures = {**self.reverser.figures(), "stopped": self.halt.reason or None}
+        if self.halt.reason:
+            self.exit_code = 1
+            self.get_logger().error(f"{self.halt.reason}; until then: {self.reverser.summary()}")
+        else:
+            self.get_logger().info(self.reverser.summary())
