@@ -27,3 +27,12 @@ class HaltWatch:
         for status in msg.status:
             if status.name.endswith(SIMULATION_STATUS) and status.level == DiagnosticStatus.ERROR and not self.reason:
                 self.reason = f"the simulator halted: {status.message}"
+
+    def report(self, logger, figures: dict, summary: str) -> tuple[dict, int]:
+        """(the figures with ``stopped``: the halt's reason or None, the exit code: 1 if halted) of
+        a controller that ends, its ``summary`` logged (an error line after a halt)."""
+        if self.reason:
+            logger.error(f"{self.reason}; until then: {summary}")
+        else:
+            logger.info(summary)
+        return {**figures, "stopped": self.reason or None}, 1 if self.reason else 0

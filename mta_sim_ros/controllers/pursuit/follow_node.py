@@ -37,9 +37,4 @@ class FollowNode(Node):
         self.pub.publish(Float64(data=self.follower.steering(points, th)))
 
     def finish(self) -> None:
-        self.figures = {**self.follower.figures(), "stopped": self.halt.reason or None}
-        if self.halt.reason:
-            self.exit_code = 1
-            self.get_logger().error(f"{self.halt.reason}; until then: {self.follower.summary()}")
-        else:
-            self.get_logger().info(self.follower.summary())
+        self.figures, self.exit_code = self.halt.report(self.get_logger(), self.follower.figures(), self.follower.summary())

@@ -48,9 +48,4 @@ class ReverseNode(Node):
         self.pub.publish(out)
 
     def finish(self) -> None:
-        self.figures = {**self.reverser.figures(), "stopped": self.halt.reason or None}
-        if self.halt.reason:
-            self.exit_code = 1
-            self.get_logger().error(f"{self.halt.reason}; until then: {self.reverser.summary()}")
-        else:
-            self.get_logger().info(self.reverser.summary())
+        self.figures, self.exit_code = self.halt.report(self.get_logger(), self.reverser.figures(), self.reverser.summary())
