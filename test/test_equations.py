@@ -70,11 +70,12 @@ def test_the_built_acceleration_is_the_kernels(name):
         assert evaluate(eq.acceleration, eq, values) == pytest.approx(expected, rel=1e-12, abs=1e-12)
 
 
-@pytest.mark.parametrize("name", ["single_tractor", "offset_hitch", "light_tractor_heavy_cart"])
+@pytest.mark.parametrize("name", ["single_tractor", "offset_hitch", "light_tractor_heavy_cart", "default"])
 def test_the_printed_acceleration_parsed_back_is_the_kernels(name, capsys):
-    """The V' line that ``mta equations`` prints, read back by sympy from the text alone."""
+    """The V' line that ``mta equations`` prints, read back by sympy from the text alone (the
+    3-cart unit with ``--expand-up-to 3``)."""
     train = load(name)
-    assert cli.main(["equations", f"trains/{name}.yaml"]) == 0
+    assert cli.main(["equations", f"trains/{name}.yaml", "--expand-up-to", "3"]) == 0
     text = capsys.readouterr().out
     [line] = [l for l in text.splitlines() if l.startswith("V' = ")]
     eq = equations.build(train)
@@ -123,3 +124,23 @@ def test_latex_and_numbers(capsys):
     text = capsys.readouterr().out
     assert "\\begin{align*}" in text and "l_{1}" not in text.split("## Structural matrices")[1]
     assert re.search(r"V' &= ", text)
+
+
+def test_a_long_train_prints_its_recursion_and_refuses_nothing(capsys):
+    """The 20-cart train: the recursion (the same step as the 3-cart unit's: it is one cart's) and
+    the element lists, the expanded forms left out with a line saying how to get them."""
+    assert cli.main(["equations", "trains/long_train_20.yaml"]) == 0
+    text = capsys.readouterr().out
+    assert "- cart 20 (trolley_19)" in text and "(F_B20, s'_B20)" in text
+    assert "expanded for n <= 2 only: --expand-up-to" in text and "\nV' = " not in text
+    assert cli.main(["equations", "trains/default.yaml"]) == 0
+    short = capsys.readouterr().out
+    recursion = lambda t: t.split("## The recursion")[1].split("## Structural")[0]  # noqa: E731
+    assert recursion(text) == recursion(short)
+
+
+@pytest.mark.parametrize("value", ["6", "-1", "x", "2.5", "", "99999999999999999999"])
+def test_an_expansion_too_large_is_refused_in_one_line(value, capsys):
+    assert cli.main(["equations", "trains/default.yaml", "--expand-up-to", value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--expand-up-to" in err and "0 to 5" in err, err

@@ -22,6 +22,7 @@ from mta_sim_ros.symbolic import linear
 DEFAULT = loader.load_train(resolve_config_path("trains/default.yaml"))
 OFFSET = loader.load_train(resolve_config_path("trains/offset_hitch.yaml"))
 LONG = loader.load_train(resolve_config_path("trains/long_train.yaml"))
+LONG20 = loader.load_train(resolve_config_path("trains/long_train_20.yaml"))
 
 
 def random_train(rng, n: int):
@@ -36,7 +37,7 @@ def random_train(rng, n: int):
 
 
 @pytest.mark.parametrize("speed", [3.0, 1.0, -1.0, -3.0])
-@pytest.mark.parametrize("train", [DEFAULT, OFFSET, pytest.param(LONG, marks=pytest.mark.slow)], ids=lambda t: t.name)
+@pytest.mark.parametrize("train", [DEFAULT, OFFSET, LONG, LONG20], ids=lambda t: t.name)
 def test_straight_motion_has_the_closed_form_eigenvalues(train, speed):
     model = linear.linearize(train, "straight", speed)
     np.testing.assert_allclose(np.sort(model.eigenvalues.real), linear.straight_closed_form(train, speed),
@@ -68,8 +69,11 @@ def test_one_cart_is_the_kinematic_bicycle():
     np.testing.assert_allclose(model.B.ravel(), [0, 0, 1 / tau], rtol=1e-14)
 
 
-@pytest.mark.parametrize("speed, steering", [(3.0, 0.25), (3.0, -0.25), (1.0, 0.1), (-2.0, 0.2), (-1.0, -0.15)])
-@pytest.mark.parametrize("train", [DEFAULT, OFFSET], ids=lambda t: t.name)
+TURNS = [(3.0, 0.25), (3.0, -0.25), (1.0, 0.1), (-2.0, 0.2), (-1.0, -0.15)]
+
+
+@pytest.mark.parametrize("train, speed, steering", [(t, v, s) for t in (DEFAULT, OFFSET) for v, s in TURNS] +
+                         [(LONG20, 3.0, 0.16), (LONG20, -1.0, -0.1)], ids=lambda v: getattr(v, "name", v))
 def test_a_steady_turn_has_the_closed_form_eigenvalues(train, speed, steering):
     model = linear.linearize(train, "turn", speed, steering)
     expected = linear.turn_closed_form(train, speed, steering)
@@ -176,7 +180,7 @@ def test_forward_mode_gives_the_symbolic_jacobians(about, speed, steering):
     for n in range(1, 6):
         train = random_train(rng, n)
         try:
-            symbolic = linear.linearize(train, about, speed, steering)
+            symbolic = linear.linearize(train, about, speed, steering, exact="sympy")
         except Exception as err:  # no steady turn for this train at this steering
             assert about == "turn", err
             continue

@@ -11,8 +11,9 @@ Built symbolically (sympy) from the train file by the model's own code: the kine
 * the structural matrices W_J = d(s'_Ck, th'_k)/dV and W_P = d(s'_A1, s'_Bk)/dV, the reduced mass
   M(q, psi_1) = W_J^T diag(m, J) W_J, the generalized force Q, dM/dt;
 * the Cauchy form q' = G(q, psi_1) V, psi_1' = actuator, V' = (Q - 1/2 M' V) / M;
-* for n <= 2, V' expanded in the pose, the steering angle and its rate, V and the forces (it swells
-  about 3x per cart: longer trains keep the recursion).
+* for n <= ``expand_up_to`` (``render``'s, default 2), the structural matrices, M, Q, dM/dt and V'
+  expanded in the pose, the steering angle and its rate, V and the forces (they swell about 3x per
+  cart: longer trains keep the recursion, which prints for any n).
 
 Symbols: theta_k headings, psi_1 the steering angle and dpsi_1 = psi_1' its rate (the actuator's), V the speed
 of A_1, l_k, a_k, c_k the cart's length, hitch offset and centre-of-mass offset (lam_k = a_k / l_k,
@@ -122,11 +123,14 @@ def render(eq: Equations, fmt: str = "markdown", numbers: bool = False, expand_u
     out += block([(name, show(expr)) for name, expr in eq.recursion.items()])
     out += ["## Structural matrices", "", "W_J = d(s'_C1, theta'_1, ..., s'_Cn, theta'_n)/dV, "
             "W_P = d(s'_A1, s'_B1, ..., s'_Bn)/dV:", ""]
-    rows = []
-    for k in range(n):
-        rows += [(f"kapC_{k + 1}", show(eq.kapC[k])), (f"kapT_{k + 1}", show(eq.kapT[k]))]
-    rows += [("kapA_1", "1")] + [(f"kapB_{k + 1}", show(eq.kapB[k])) for k in range(n)]
-    out += block(rows) if n <= expand_up_to else ["(expanded for n <= 2 only; the recursion gives them)", ""]
+    if n <= expand_up_to:  # the expanded forms double in size with each cart: only for short trains
+        rows = []
+        for k in range(n):
+            rows += [(f"kapC_{k + 1}", show(eq.kapC[k])), (f"kapT_{k + 1}", show(eq.kapT[k]))]
+        rows += [("kapA_1", "1")] + [(f"kapB_{k + 1}", show(eq.kapB[k])) for k in range(n)]
+        out += block(rows)
+    else:
+        out += [f"(expanded for n <= {expand_up_to} only: --expand-up-to; the recursion gives them)", ""]
     out += ["## Reduced mass, generalized force, dM/dt", "",
             "M = sum_k m_k kapC_k^2 + J_k kapT_k^2 (= W_J^T diag(m, J) W_J), Q = F_A1 - sum_k F_Bk kapB_k, "
             "dM/dt = sum_k 2 (m_k kapC_k kapC_k' + J_k kapT_k kapT_k'), the rates along the motion with "

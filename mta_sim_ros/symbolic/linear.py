@@ -165,12 +165,13 @@ class Dual:
 
 
 def linearize(train, about: str = "straight", speed: float = 3.0, steering: float = 0.0,
-              exact: str = "sympy") -> LinearModel:
+              exact: str = "dual") -> LinearModel:
     """The linear model of ``train`` about straight motion at ``speed`` (forward or reversing)
     or about the steady turn of ``steering`` (module docstring). ``exact``: how A and B are
-    differentiated, both exact: "sympy" (the Jacobian of the symbolic equations, as printed) or
-    "dual" (forward-mode on numbers through the same ``chain``: no sympy, ~1 ms against ~1 s the
-    first time, what a run that designs its gains at start-up takes)."""
+    differentiated, both exact: "dual" (forward-mode on numbers through ``chain``: no sympy, a few
+    ms for 20 carts) or "sympy" (the Jacobian of the symbolic equations: the independent check of
+    the dual numbers, test_linear; its expressions double with each cart, 4 s for 4 carts, minutes
+    for 7)."""
     n = train.n
     geom = ChainGeometry.of(train)
     tau = train.actuator.time_constant

@@ -5,8 +5,9 @@
 
 States: the tractor's lateral offset and heading (about a turn: its radial offset from the steady
 circle and its heading against the circle's tangent), each hitch angle, the steering angle; input:
-the steering command. Exact derivatives (sympy) of the model's own chain equations at the operating
-point; prints A, B and the eigenvalues with what each is, as Markdown; ``--out PREFIX`` also writes
+the steering command. Exact derivatives of the model's own chain equations at the operating point
+(forward-mode dual numbers through the chain: milliseconds for any train; equal to sympy's Jacobian
+to round-off, test_linear); prints A, B and the eigenvalues with what each is, as Markdown; ``--out PREFIX`` also writes
 PREFIX.md, PREFIX.json and PREFIX.npz (A, B, eigenvalues, states).
 """
 from __future__ import annotations
