@@ -45,24 +45,28 @@ _ROSDEP_KEYS = {
     # mta field: the field's geometry and its projection (rosdistro's keys)
     'shapely': 'python3-shapely',
     'pyproj': 'python3-pyproj',
-    # mta sweep: rosdistro's keys, and pip keys of the package's own rosdep source (rosdep/mta_sim_ros.yaml)
     'sympy': 'python3-sympy',
     'pandas': 'python3-pandas',
     'psutil': 'python3-psutil',
-    'dask': 'python3-dask-distributed-pip',
-    'distributed': 'python3-dask-distributed-pip',
-    'pyarrow': 'python3-pyarrow-pip',
-    'SALib': 'python3-salib-pip',
+    'mcap_ros2': 'mcap-ros2-support',
 }
-#: the keys rosdistro lacks, defined by the package's own rosdep source
-_OWN_ROSDEP = REPO / 'rosdep' / 'mta_sim_ros.yaml'
+#: the plain (non-ROS-package) rosdep keys rosdistro defines that package.xml may name, read from
+#: rosdep/python.yaml of ros/rosdistro at 8468e88 (2026-08-22): a key not in rosdistro makes
+#: `rosdep install` fail for every user who has not added a source of their own
+ROSDISTRO_KEYS = {
+    'python3-numpy', 'python3-scipy', 'python3-yaml', 'python3-matplotlib', 'python3-shapely', 'python3-pyproj',
+    'python3-numba', 'mcap-ros2-support', 'python3-sympy', 'python3-pandas', 'python3-psutil', 'python3-pytest',
+    'python3-hypothesis',
+}
 # Third-party modules without a rosdep key: import name -> PyPI distribution
-# that must be listed in requirements.txt.
+# that must be listed in requirements.txt (mcap comes with mcap-ros2-support's key).
 _PIP_ONLY = {
     'mcap': 'mcap',
     'mcap_ros2': 'mcap-ros2-support',
     'rosbags': 'rosbags',
 }
+#: mta sweep's engine libraries, without a rosdistro key: setup.py's extra 'sweep'
+_SWEEP_EXTRA = {'dask': 'dask', 'distributed': 'dask', 'pyarrow': 'pyarrow', 'SALib': 'SALib', 'pandas': 'pandas'}
 
 
 def _manifest():
@@ -156,19 +160,30 @@ def test_every_imported_ros_package_is_an_exec_depend():
         f'Python libraries imported but missing from requirements.txt: {missing_pip}')
 
 
-def test_the_own_rosdep_keys_are_pip_keys_of_the_requirements():
-    """Every package.xml key ending in -pip is defined in rosdep/mta_sim_ros.yaml as pip packages
-    for debian and ubuntu, and each package is in requirements.txt (the venvs test them)."""
-    import yaml
+def test_every_plain_rosdep_key_is_rosdistros():
+    """`rosdep install --from-paths src --ignore-src -y` with rosdep's default sources: every key
+    of package.xml that is not a ROS package is one rosdistro defines (no -pip key of our own)."""
+    root = _manifest()
+    keys = {e.text.strip() for tag in ('exec_depend', 'depend', 'test_depend', 'build_depend')
+            for e in root.findall(tag)}
+    plain = {k for k in keys if k.startswith('python3-') or k in ROSDISTRO_KEYS or k.endswith('-pip')}
+    assert plain and plain <= ROSDISTRO_KEYS, plain - ROSDISTRO_KEYS
 
-    own = yaml.safe_load(_OWN_ROSDEP.read_text())
-    keys = {e.text.strip() for e in _manifest().findall('exec_depend') if e.text.strip().endswith('-pip')}
-    assert keys and keys <= set(own), keys - set(own)
-    reqs = _requirement_names()
-    for key in keys:
-        for distro in ('debian', 'ubuntu'):
-            for package in own[key][distro]['pip']['packages']:
-                assert package.split('[')[0].lower() in {r.lower() for r in reqs}, (key, package)
+
+def test_the_sweep_libraries_are_the_sweep_extra():
+    """What mta sweep imports without a rosdistro key is setup.py's extra 'sweep' (and
+    requirements.txt, which the venvs install), and what mta sweep names when it is missing."""
+    from mta_sim_ros.tools.sweep import LIBRARIES
+
+    setup = (REPO / 'setup.py').read_text()
+    extra = ast.literal_eval(re.search(r"'sweep': (\[.*\])", setup).group(1))
+    named = {re.split(r'[\[<>=]', part)[0] for part in extra}
+    imports = _imported_top_level_modules(sorted((REPO / PKG / 'sweep').rglob('*.py')))
+    for module, dist in _SWEEP_EXTRA.items():
+        if module in imports:
+            assert dist in named, (module, dist, named)
+            assert dist.lower() in {r.lower() for r in _requirement_names()}, dist
+    assert set(LIBRARIES.values()) <= named | {'dask[distributed]'}, LIBRARIES
 
 
 def test_the_launch_files_imports_are_exec_depends():
@@ -189,13 +204,13 @@ def test_the_launch_files_imports_are_exec_depends():
 def test_no_unknown_third_party_imports():
     """A new third-party import must be declared; then add it to the maps above."""
     own = {PKG, 'test'}
-    known = set(_ROSDEP_KEYS) | set(_PIP_ONLY) | own
+    known = set(_ROSDEP_KEYS) | set(_PIP_ONLY) | set(_SWEEP_EXTRA) | own
     unknown = {name: where for name, where in _imported_top_level_modules().items()
                if name not in sys.stdlib_module_names and name not in known
                and not _is_ros_module(name)}
     assert not unknown, (
         'Imports of undeclared third-party modules (declare them in package.xml '
-        'or requirements.txt/setup.py, then add them to _ROSDEP_KEYS or '
+        'or requirements.txt/setup.py, then add them to _ROSDEP_KEYS, _SWEEP_EXTRA or '
         f'_PIP_ONLY in test/test_package.py): {unknown}')
 
 
