@@ -62,7 +62,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
     ] + share_data_files(),
     # The vendored ROS message definitions (bag/msg/README.md): bags written without a ROS install.
-    package_data={package_name + '.bag': ['msg/*/*.msg', 'msg/*/LICENSE', 'msg/LICENSE', 'msg/README.md']},
+    package_data={package_name + '.bag': ['msg/*/*.msg', 'msg/*/LICENSE', 'msg/LICENSE', 'msg/README.md', 'msg/type_hashes.json']},
     # Plain-Python runtime deps only: `pip install .` alone runs mta run, check, analyze, replay
     # --resimulate and the benchmarks that need no DDS (test/test_no_ros.py does so in a venv
     # without ROS). The ROS 2 wheels (ros-jazzy-rclpy, ros-jazzy-common-interfaces) are

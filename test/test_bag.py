@@ -11,6 +11,7 @@ is needed; it requires profile "ros2" and a summary section, so a truncated
 file must first go through ``recover()``.
 """
 
+import json
 import os
 import resource
 import signal
@@ -211,6 +212,18 @@ def test_vendored_definitions_are_the_installed_files_of_every_type_the_package_
         installed = [path for path in installed if path.is_file()]
         assert installed, f"{type_name}.msg is not installed here to compare with"
         assert (root / pkg / f"{name}.msg").read_bytes() == installed[0].read_bytes(), type_name
+    hashes = json.loads((root / "type_hashes.json").read_text())
+    assert set(hashes) == {t.replace("/", "/msg/") for t in vendored}
+    for type_name in sorted(vendored):
+        assert hashes[type_name.replace("/", "/msg/")] == installed_type_hash(type_name), type_name
+
+
+def installed_type_hash(type_name: str) -> str:
+    """The RIHS01 hash in the type description Jazzy's rosidl installed (share/<pkg>/msg/<Name>.json)."""
+    pkg, name = type_name.replace("/msg/", "/").split("/")
+    [path] = [p for p in (share / pkg / "msg" / f"{name}.json" for share in share_dirs()) if p.is_file()][:1]
+    [entry] = [h for h in json.loads(path.read_text())["type_hashes"] if h["type_name"] == f"{pkg}/msg/{name}"]
+    return entry["hash_string"]
 
 
 def test_field_type_resolution(fake_msgs):
@@ -319,6 +332,7 @@ def test_file_layout_read_with_mcap(sample):
         [qos] = yaml.safe_load(channel.metadata["offered_qos_profiles"])
         assert qos["reliability"] == "reliable" and qos["depth"] == 10
         assert qos["deadline"] == {"sec": 9223372036, "nsec": 854775807}
+        assert channel.metadata["topic_type_hash"] == installed_type_hash(TOPICS[channel.topic])
     counts = {info.channels[c].topic: n for c, n in info.statistics.channel_message_counts.items()}
     assert counts == {topic: STEPS for topic in TOPICS}
     assert info.statistics.message_count == len(written)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -130,6 +131,15 @@ def assert_urdf_kinematics_give_the_frames(model: yourdfpy.URDF, joint_state, fr
 
 
 # -- the robot model -----------------------------------------------------------------------------
+def test_the_robot_model_is_the_same_wherever_the_train_file_lies(tmp_path):
+    """The URDF names the train file by its name, never its folder: copied elsewhere, the same model."""
+    here = robot_model(load_train(TRAIN)).urdf
+    (tmp_path / "deep" / "er").mkdir(parents=True)
+    there = robot_model(load_train(shutil.copy(TRAIN, tmp_path / "deep" / "er" / "default.yaml"))).urdf
+    assert here == there and "from default.yaml," in here
+    assert str(REPO) not in here and str(tmp_path) not in there
+
+
 def test_the_prefix_comes_from_the_namespace():
     assert [frame_prefix(ns) for ns in ("/", "", "/unit1", "/fleet/unit1/")] == ["", "", "unit1/", "fleet/unit1/"]
 

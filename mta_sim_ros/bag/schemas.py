@@ -103,6 +103,19 @@ def vendored_dir():
     return resources.files(__package__) / "msg"
 
 
+@functools.lru_cache(maxsize=None)
+def type_hash(type_name: str) -> str:
+    """The RIHS01 hash ROS 2 Jazzy gives a message type (what rmw compares between a publisher and
+    a subscription; rosbag2 keeps it as a channel's ``topic_type_hash``), "" for a type the package
+    does not write. From msg/type_hashes.json: the hashes Jazzy's rosidl put in each type's
+    ``share/<pkg>/msg/<Name>.json`` (test/test_bag.py holds them to the installed files)."""
+    import json
+
+    table = json.loads((vendored_dir() / "type_hashes.json").read_text())
+    pkg, name = split_type_name(type_name)
+    return table.get(f"{pkg}/msg/{name}", "")
+
+
 def _read_msg_file(pkg: str, name: str, needed_by: str | None) -> str:
     """Return the verbatim text of ``pkg/msg/Name.msg`` from the first share dir, else from the
     vendored copies."""

@@ -37,7 +37,7 @@ from mcap.writer import Writer as McapWriter
 
 from .. import __version__ as _package_version
 from .cdr import EncodeError, MessageEncoder
-from .schemas import BagError, message_definition
+from .schemas import BagError, message_definition, type_hash
 from .schemas import schema_name as _schema_name
 
 #: Default chunk size in bytes of uncompressed records (see module docstring).
@@ -189,11 +189,15 @@ class BagWriter:
 
         Writes the schema (encoding "ros2msg", the full message definition) and
         a CDR channel whose metadata holds ``offered_qos_profiles`` = ``qos``
-        (see :func:`qos_profiles_yaml`).  Registering a topic again with the
-        same type and QoS is a no-op.
+        (see :func:`qos_profiles_yaml`) and, as rosbag2 Jazzy writes it, the
+        type's ``topic_type_hash`` (RIHS01; left out for a type the package does
+        not vendor).  Registering a topic again with the same type and QoS is a
+        no-op.
         """
-        self.add_channel(topic, _schema_name(type_name), message_definition(type_name),
-                         {"offered_qos_profiles": qos})
+        metadata = {"offered_qos_profiles": qos}
+        if type_hash(type_name):
+            metadata["topic_type_hash"] = type_hash(type_name)
+        self.add_channel(topic, _schema_name(type_name), message_definition(type_name), metadata)
 
     def add_channel(self, topic: str, schema_name: str, schema_data: str | bytes,
                     channel_metadata: Mapping[str, str] | None = None,

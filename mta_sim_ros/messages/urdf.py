@@ -42,6 +42,7 @@ Names are refused (one line, InputError) when a frame would not be a name tf2 ta
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -197,10 +198,16 @@ def _geometry(link: ET.Element, tag: str, xyz: tuple, size: tuple, material: str
         ET.SubElement(part, "material", name=material)
 
 
+def _file_name(source: str | None) -> str:
+    """The train file's name, without its folder: the robot model is the same wherever the file
+    lies (and says nothing of the machine it was made on)."""
+    return os.path.basename(source) if source else "its train file"
+
+
 def _urdf(robot: Robot, train) -> str:
     root = ET.Element("robot", name=train.name)
     root.append(ET.Comment(_comment_text(
-        f" {train.name} from {train.source or 'its train file'}, made by mta_sim_ros.urdf. Frames: every one "
+        f" {train.name} from {_file_name(train.source)}, made by mta_sim_ros.urdf. Frames: every one "
         "at z = 0, x forward along its cart's axis; <cart> at its rear axle B_k, <cart>_hitch at its hitch "
         "A_k, base_link = the tractor's rear axle. Assumed (the train file gives none): box height "
         f"{BOX_HEIGHT} m, centre of mass at half of it, ixx and iyy of a uniform box scaled to the train's "
