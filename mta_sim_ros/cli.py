@@ -156,6 +156,9 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "field", "field operations: plan a field for a train, work it offline, report it", selected)
 
+    add_tool(sub, "compile", "compile the kernels into numba's cache once, after an install (first start ~1 s)",
+             selected)
+
     return parser
 
 
