@@ -51,7 +51,7 @@ from mta_sim_ros.bag import (
 )
 from mta_sim_ros.bag.schemas import SEPARATOR, share_dirs, vendored_dir
 from mta_sim_ros.field.plan_io import PLAN_TYPE
-from mta_sim_ros.messages.topics import BAG_TOPICS
+from mta_sim_ros.messages.topics import BAG_TOPICS, STAMPED_CMD_VEL_TYPE
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -200,7 +200,7 @@ def test_vendored_definitions_are_the_installed_files_of_every_type_the_package_
     definitions), and nothing else: a venv without ROS (test_no_ros.py) writes the schemas a ROS
     install writes."""
     needed = set()
-    for type_name in set(BAG_TOPICS.values()) | {PLAN_TYPE}:  # the node's bags and a field plan's
+    for type_name in set(BAG_TOPICS.values()) | {PLAN_TYPE, STAMPED_CMD_VEL_TYPE}:  # the node's bags, a plan's
         needed.add(type_name.replace("/msg/", "/"))
         needed.update(line[5:] for line in message_definition(type_name).splitlines() if line.startswith("MSG: "))
     root = Path(str(vendored_dir()))

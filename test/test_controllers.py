@@ -8,14 +8,14 @@ import math
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.serialization import serialize_message
 from test_session import SCENE, TICK, Run
 
 from mta_sim_ros.analysis import resimulate
 from mta_sim_ros.bag import read_messages
 from mta_sim_ros.bag.cdr import encode
-from mta_sim_ros.messages.decode import decode_ackermann, decode_twist
+from mta_sim_ros.messages.decode import CommandDecodeError, decode_ackermann, decode_twist, decode_twist_stamped
 from mta_sim_ros.node.commands import SPEED_LIMIT, ackermann_setting, twist_setting
 from mta_sim_ros.node.pacing import LOCKSTEP_TIMER_PERIOD, REPUBLISH_EVERY
 from mta_sim_ros.node.run_session import message_commands
@@ -41,6 +41,13 @@ def twist(v: float, omega: float, **other) -> bytes:
     """A geometry_msgs/Twist as CDR bytes (our serializer; rclpy's is compared below)."""
     return encode("geometry_msgs/msg/Twist", {"linear": {"x": v, "y": other.get("vy", 0.0), "z": 0.0},
                                               "angular": {"x": 0.0, "y": 0.0, "z": omega}})
+
+
+def twist_stamped(v: float, omega: float, frame_id: str = "base_link") -> bytes:
+    """A geometry_msgs/TwistStamped as CDR bytes (our serializer; rclpy's is compared below)."""
+    return encode("geometry_msgs/msg/TwistStamped", {
+        "header": {"stamp": {"sec": 12, "nanosec": 345}, "frame_id": frame_id},
+        "twist": {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": omega}}})
 
 
 def ackermann(steering: float, speed: float, rate: float = 0.0, frame_id: str = "base_link") -> bytes:
@@ -96,6 +103,20 @@ def test_twist_bytes_are_read_as_rclpy_writes_them(v, omega, vy):
     data = serialize_message(msg)
     assert data == twist(v, omega, vy=vy)
     assert decode_twist(data) == (v, omega)
+
+
+@pytest.mark.parametrize("frame_id", ["", "a", "abc", "odom", "base_link", "x" * 17])
+def test_twist_stamped_bytes_are_read_as_rclpy_writes_them(frame_id):
+    """Every length of frame_id moves the twist's 8-byte alignment: rclpy's bytes, ours, both read."""
+    msg = TwistStamped()
+    msg.header.frame_id = frame_id
+    msg.twist.linear.x, msg.twist.angular.z = -2.75, 0.125
+    data = serialize_message(msg)
+    assert decode_twist_stamped(data) == (-2.75, 0.125)
+    assert decode_twist_stamped(twist_stamped(-2.75, 0.125, frame_id)) == (-2.75, 0.125)
+    for cut in (0, 4, 15, len(data) - 1):
+        with pytest.raises(CommandDecodeError, match="TwistStamped"):
+            decode_twist_stamped(data[:cut])
 
 
 @needs_ackermann
@@ -174,6 +195,27 @@ def test_cmd_vel_steers_exactly_as_the_equivalent_float64_commands(tmp_path):
     assert a.topic("hitch_poses") == b.topic("hitch_poses") and len(a.topic("hitch_poses")) == 400
     a.s.close()
     b.s.close()
+
+
+def test_a_stamped_cmd_vel_steers_as_the_twist_and_resimulates(tmp_path):
+    """cmd_vel_stamped: the node takes cmd_vel as TwistStamped (nav2's enable_stamped_cmd_vel): the
+    same twists give the same outputs, byte for byte, the bag's cmd_vel channel is TwistStamped as
+    received, and the bag re-simulates exactly."""
+    a, b = Run(tmp_path / "a"), Run(tmp_path / "b", cmd_vel_stamped=True)
+    for v, omega in [(3.0, 0.0), (3.0, 0.15), (2.5, -0.2), (0.0, 0.1)]:
+        a.s.command_message("cmd_vel", twist(v, omega))
+        b.s.command_message("cmd_vel", twist_stamped(v, omega, "base_link"))
+        a.ticks(50)
+        b.ticks(50)
+    assert a.topic("hitch_poses") == b.topic("hitch_poses") and len(a.topic("hitch_poses")) == 200
+    a.s.close()
+    b.s.close()
+    [bag] = b.bags()
+    received = [m for _, _, m in read_messages(str(bag), ["/cmd_vel"])]
+    assert [m.header.frame_id for m in received] == ["base_link"] * 4
+    assert [(m.twist.linear.x, m.twist.angular.z) for m in received] == [(3.0, 0.0), (3.0, 0.15), (2.5, -0.2),
+                                                                              (0.0, 0.1)]
+    assert resimulate(str(bag)).identical
 
 
 @pytest.mark.parametrize("kwargs, tol", [

@@ -28,9 +28,9 @@ RATE = 50.0
 pytestmark = pytest.mark.dds
 
 
-def lockstep_params(tmp_path: Path, name: str) -> Path:
+def lockstep_params(tmp_path: Path, name: str, **extra) -> Path:
     return write_params(tmp_path / f"{name}.yaml", scene_file=str(SCENE), bag_dir=str(tmp_path / name),
-                        publish_rate=RATE, lockstep=True, lockstep_timeout=5.0, record=True)
+                        publish_rate=RATE, lockstep=True, lockstep_timeout=5.0, record=True, **extra)
 
 
 def follow_once(tmp_path: Path, name: str, probe: Probe) -> tuple[Path, float, float]:
@@ -108,6 +108,14 @@ CONTROLLER = """
             m = Twist()
             m.linear.x, m.angular.z = V0 * math.cos(p), V0 * math.sin(p) / L1
             return m
+    elif mode == "cmd_vel_stamped":
+        from geometry_msgs.msg import TwistStamped
+        pub = node.create_publisher(TwistStamped, "cmd_vel", QOS)
+        def make(p):
+            m = TwistStamped()
+            m.header.frame_id = "base_link"
+            m.twist.linear.x, m.twist.angular.z = V0 * math.cos(p), V0 * math.sin(p) / L1
+            return m
     else:
         from ackermann_msgs.msg import AckermannDriveStamped
         pub = node.create_publisher(AckermannDriveStamped, "ackermann_cmd", QOS)
@@ -143,7 +151,8 @@ ANSWERS = 500  # 10 s at 50 Hz: ~30 m along a varying curve
 def scripted_run(tmp_path: Path, mode: str, probe: Probe) -> dict[str, list]:
     scene = load_scene(str(SCENE))
     v0, l1 = speed_setpoint(scene, 0.0), scene.train.carts[0].length
-    node = start_node(lockstep_params(tmp_path, mode), tmp_path / f"{mode}.log")
+    extra = {"cmd_vel_stamped": True} if mode == "cmd_vel_stamped" else {}
+    node = start_node(lockstep_params(tmp_path, mode, **extra), tmp_path / f"{mode}.log")
     try:
         code = CONTROLLER.replace("sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])",
                                   f"{mode!r}, {v0!r}, {l1!r}, {ANSWERS}")
@@ -164,9 +173,10 @@ def poses(bag: dict[str, list]) -> tuple[list[int], np.ndarray]:
 
 def test_cmd_vel_and_ackermann_cmd_steer_the_path_of_the_equivalent_float64_commands(tmp_path, probe):
     """The same schedule of steering angles psi_k, in lockstep (so each command holds over the
-    same tick in every run), sent three ways: steering_angle (the speed stays the scene's set
+    same tick in every run), sent four ways: steering_angle (the speed stays the scene's set
     speed V0), cmd_vel (v = V0 cos psi_k, omega = V0 sin psi_k / l_1: the node's bicycle relation
-    gives back psi_k and V0), ackermann_cmd (steering_angle = psi_k, speed = V0 cos psi_k).
+    gives back psi_k and V0), the same as TwistStamped to a node with cmd_vel_stamped, and
+    ackermann_cmd (steering_angle = psi_k, speed = V0 cos psi_k).
     The bags hold the same ticks, and the hitch points agree:
 
     * cmd_vel to 1e-9 m: atan(l_1 omega / v) and v / cos psi give psi_k and V0 within a few ulps
@@ -181,7 +191,7 @@ def test_cmd_vel_and_ackermann_cmd_steer_the_path_of_the_equivalent_float64_comm
     assert len(times) >= ANSWERS
     distance = float(np.sum(np.hypot(*np.diff(xy[:, 0, :], axis=0).T)))
     assert distance > 20.0
-    modes = {"cmd_vel": 1e-9}
+    modes = {"cmd_vel": 1e-9, "cmd_vel_stamped": 1e-9}
     if "ackermann_cmd" in message_commands():
         modes["ackermann"] = 4 * 2.0**-24 * distance
     for mode, tol in modes.items():
@@ -191,7 +201,7 @@ def test_cmd_vel_and_ackermann_cmd_steer_the_path_of_the_equivalent_float64_comm
         deviation = float(np.max(np.abs(other - xy)))
         print(f"{mode}: largest hitch-point deviation from the Float64 run {deviation:.3g} m (bound {tol:.3g} m)")
         assert deviation < tol, mode
-        assert "/steering_angle" not in bag and len(bag[f"/{mode if mode == 'cmd_vel' else 'ackermann_cmd'}"]) == ANSWERS
+        assert "/steering_angle" not in bag and len(bag["/ackermann_cmd" if mode == "ackermann" else "/cmd_vel"]) == ANSWERS
     if "ackermann" not in modes:
         pytest.fail("ackermann_msgs is not installed: ackermann_cmd not checked")
 

@@ -281,8 +281,9 @@ class RecordedInputs:
         wheelbase, actuator = scene.train.carts[0].length, scene.train.actuator
         self.messages = messages = _Messages(self.steering, self.speed, self.steering_rate)
 
-        def cmd_vel(m):
-            return twist_setting(float(m.linear.x), float(m.angular.z), wheelbase, actuator.max_angle)
+        def cmd_vel(m):  # a Twist, or a TwistStamped (the node's cmd_vel_stamped): its twist
+            twist = getattr(m, "twist", m)
+            return twist_setting(float(twist.linear.x), float(twist.angular.z), wheelbase, actuator.max_angle)
 
         def ackermann_cmd(m):
             d = m.drive

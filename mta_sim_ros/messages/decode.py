@@ -1,5 +1,5 @@
 """The command messages a controller sends, read from their CDR bytes without ROS: cmd_vel
-(geometry_msgs/Twist), ackermann_cmd (ackermann_msgs/AckermannDriveStamped) and implement_lowered
+(geometry_msgs/Twist, or TwistStamped with the node's cmd_vel_stamped), ackermann_cmd (ackermann_msgs/AckermannDriveStamped) and implement_lowered
 (std_msgs/Bool).
 
 The node hands the session the bytes it received (the bag records them as they are) and the
@@ -13,6 +13,7 @@ from __future__ import annotations
 import struct
 
 TWIST_TYPE = "geometry_msgs/msg/Twist"
+TWIST_STAMPED_TYPE = "geometry_msgs/msg/TwistStamped"
 ACKERMANN_TYPE = "ackermann_msgs/msg/AckermannDriveStamped"
 BOOL_TYPE = "std_msgs/msg/Bool"
 
@@ -41,6 +42,29 @@ def decode_twist(data: bytes) -> tuple[float, float]:
     return linear_x, angular_z
 
 
+def decode_twist_stamped(data: bytes) -> tuple[float, float]:
+    """(twist.linear.x, twist.angular.z) of a geometry_msgs/TwistStamped: header (stamp: int32
+    sec, uint32 nanosec; frame_id: uint32 length with the NUL, the characters), then the twist's
+    six float64 aligned to 8."""
+    order = _endian(data, TWIST_STAMPED_TYPE)
+    offset = _after_header(data, order, TWIST_STAMPED_TYPE)
+    offset += -offset % 8
+    body = memoryview(data)[4:]
+    if len(body) < offset + 48:
+        raise CommandDecodeError(f"{TWIST_STAMPED_TYPE}: {len(data)} bytes, too short for its header and twist")
+    linear_x, _, _, _, _, angular_z = struct.unpack_from(order + "6d", body, offset)
+    return linear_x, angular_z
+
+
+def _after_header(data: bytes, order: str, type_name: str) -> int:
+    """The offset (from the end of the encapsulation) just after a std_msgs/Header."""
+    body = memoryview(data)[4:]
+    if len(body) < 12:
+        raise CommandDecodeError(f"{type_name}: {len(data)} bytes, too short for a header")
+    (length,) = struct.unpack_from(order + "I", body, 8)
+    return 12 + length
+
+
 def decode_ackermann(data: bytes) -> tuple[float, float, float]:
     """(steering_angle, steering_angle_velocity, speed) of an ackermann_msgs/AckermannDriveStamped:
     header (stamp: int32 sec, uint32 nanosec; frame_id: uint32 length with the NUL, the
@@ -48,10 +72,8 @@ def decode_ackermann(data: bytes) -> tuple[float, float, float]:
     acceleration, jerk) aligned to 4."""
     order = _endian(data, ACKERMANN_TYPE)
     body = memoryview(data)[4:]
-    if len(body) < 12:
-        raise CommandDecodeError(f"{ACKERMANN_TYPE}: {len(data)} bytes, too short for a header")
-    (length,) = struct.unpack_from(order + "I", body, 8)
-    offset = 12 + length
+    offset = _after_header(data, order, ACKERMANN_TYPE)
+    length = offset - 12
     offset += -offset % 4
     if len(body) < offset + 20:
         raise CommandDecodeError(f"{ACKERMANN_TYPE}: {len(data)} bytes, too short for its frame_id of "

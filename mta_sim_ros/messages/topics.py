@@ -54,6 +54,9 @@ COMMAND_TOPICS = ("steering_angle", "speed_setpoint")
 MESSAGE_COMMANDS = {"cmd_vel": "geometry_msgs/msg/Twist",
                     "ackermann_cmd": "ackermann_msgs/msg/AckermannDriveStamped",
                     "implement_lowered": "std_msgs/msg/Bool"}
+#: cmd_vel's type with the node's parameter cmd_vel_stamped (nav2's enable_stamped_cmd_vel, the
+#: Jazzy ros2_controllers' drive controllers): the twist with a header
+STAMPED_CMD_VEL_TYPE = "geometry_msgs/msg/TwistStamped"
 
 # Bag only (the node records it, never publishes it): the steering command the node holds from
 # this tick on because its command watchdog took over (0.0 when a stale command is replaced by

@@ -10,7 +10,8 @@ Four command sources, one rule (:class:`Setting`: what one received message sets
 * ``steering_angle`` (Float64): the steering command psi_cmd, rad; the actuator's own rate limit;
 * ``speed_setpoint`` (Float64): the speed set-point, the model's V (the speed of A_1, the front
   axle: what the governor and the prescribed-speed law regulate), m/s;
-* ``cmd_vel`` (Twist, :func:`twist_setting`): linear.x = v, the speed of the tractor's rear axle
+* ``cmd_vel`` (Twist, or TwistStamped with the parameter cmd_vel_stamped: its twist;
+  :func:`twist_setting`): linear.x = v, the speed of the tractor's rear axle
   B_1 (base_link), angular.z = omega, the yaw rate; the bicycle relation of the tractor
   (docs/model.md: th'_1 = V sin psi_1 / l_1, s'_B1 = V cos psi_1, so omega = v tan psi_1 / l_1)
   gives psi_cmd = atan(l_1 omega / v) and V = v / cos psi_cmd (psi_cmd after clamping);
@@ -34,7 +35,8 @@ import math
 import time
 from typing import Callable
 
-from ..messages.decode import CommandDecodeError, decode_ackermann, decode_bool, decode_twist
+from ..messages.decode import (TWIST_STAMPED_TYPE, CommandDecodeError, decode_ackermann, decode_bool, decode_twist,
+                               decode_twist_stamped)
 
 #: Largest speed set-point the node accepts, m/s (either sign); beyond it the value is clamped.
 SPEED_LIMIT = 50.0
@@ -227,7 +229,8 @@ class HeldCommands:
         returns what was wrong ('' if nothing)."""
         try:
             if topic == "cmd_vel":
-                setting = twist_setting(*decode_twist(data), self.wheelbase, self.steering.high)
+                decode = decode_twist_stamped if self.message_types[topic] == TWIST_STAMPED_TYPE else decode_twist
+                setting = twist_setting(*decode(data), self.wheelbase, self.steering.high)
             elif topic == "implement_lowered":
                 setting = Setting(lowered=decode_bool(data))
             else:

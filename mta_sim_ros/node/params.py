@@ -66,6 +66,8 @@ PARAMS = (
           "hitch, the steered wheels, the fixed joints) on /tf and /tf_static; false when robot_state_publisher "
           "publishes them from robot_description and joint_states (odom -> base_link and frame_id -> odom "
           "stay the node's)", live=False),
+    Param("cmd_vel_stamped", False, "cmd_vel is geometry_msgs/TwistStamped (nav2's enable_stamped_cmd_vel, the "
+          "Jazzy ros2_controllers' drive controllers) instead of Twist", live=False),
     Param("bag_dir", "bags", "folder of the run bags <UTC start>_<run id>.mcap", live=False),
     Param("record", True, "write every run to an MCAP bag", live=False),
     Param("marker_rate", 10.0, "markers per second of simulated time, Hz", live=False, low=0.1, high=1000.0),

@@ -48,6 +48,7 @@ from ..messages.topics import (
     LATCHED_QOS_YAML,
     LATCHED_TOPICS,
     MESSAGE_COMMANDS,
+    STAMPED_CMD_VEL_TYPE,
     WATCHDOG_TOPIC,
     qualified,
 )
@@ -71,11 +72,13 @@ from .watchdog import SteeringWatchdog
 WARN_EVERY = 1.0
 
 
-def message_commands() -> dict[str, str]:
-    """The message command topics (topics.MESSAGE_COMMANDS) whose definition is installed: the
-    bag needs it, and a node cannot subscribe a type it does not have (ackermann_msgs)."""
+def message_commands(cmd_vel_stamped: bool = False) -> dict[str, str]:
+    """The message command topics (topics.MESSAGE_COMMANDS, cmd_vel as TwistStamped with
+    ``cmd_vel_stamped``) whose definition is installed: the bag needs it, and a node cannot
+    subscribe a type it does not have (ackermann_msgs)."""
     found = {}
-    for topic, type_name in MESSAGE_COMMANDS.items():
+    wanted = {**MESSAGE_COMMANDS, **({"cmd_vel": STAMPED_CMD_VEL_TYPE} if cmd_vel_stamped else {})}
+    for topic, type_name in wanted.items():
         try:
             message_definition(type_name)
         except MessageDefinitionNotFound:
@@ -124,7 +127,7 @@ class RunSession:
         if rule:
             raise ConfigError(f"parameter frame_id: {show(self.cfg['frame_id'])} must be {rule}")
         # the commands, and who decides the steering
-        self.inputs = HeldCommands(self.scene, self.sim.v_set, message_commands(), clock)
+        self.inputs = HeldCommands(self.scene, self.sim.v_set, message_commands(self.cfg["cmd_vel_stamped"]), clock)
         self.warned_at = dict.fromkeys((*COMMAND_TOPICS, *self.inputs.message_types), -WARN_EVERY)
         self.watchdog = SteeringWatchdog(self.steering, self._watchdog_timeout(), self.cfg["watchdog_action"])
         # the run
@@ -184,7 +187,7 @@ class RunSession:
         if not self.cfg["record"]:
             return None
         types = self.inputs.message_types
-        bag_topics = {t: ty for t, ty in BAG_TOPICS.items() if t not in MESSAGE_COMMANDS or t in types}
+        bag_topics = {t: types.get(t, ty) for t, ty in BAG_TOPICS.items() if t not in MESSAGE_COMMANDS or t in types}
         in_bag = {t: qualified(t, namespace) for t in bag_topics}
         return RunRecorder(self.cfg["bag_dir"], {in_bag[t]: ty for t, ty in bag_topics.items()},
                            self.run_metadata(), background=background, rename=in_bag,

@@ -123,7 +123,7 @@ class SimNode(Node):
         quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
         self.commands = {}
         sources = [(topic, Float64, False) for topic in COMMAND_TOPICS]
-        for topic, type_name in MESSAGE_COMMANDS.items():
+        for topic, type_name in {**MESSAGE_COMMANDS, **self.session.inputs.message_types}.items():
             try:
                 if topic not in self.session.inputs.message_types:
                     raise ImportError(f"no message definition of {type_name}")
