@@ -331,7 +331,8 @@ def test_a_reset_on_a_full_disk_leaves_no_empty_bag_and_says_so(tmp_path, probe)
     done = subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "recover", str(first), "-o", str(fixed)],
                           capture_output=True, text=True, cwd=REPO, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert len(read_bag(fixed)["/hitch_poses"]) > 10
+    recovered = read_bag(fixed)  # the chunks that reached the disk: the run's record and its first poses
+    assert len(recovered["/hitch_poses"]) > 0 and len(recovered["/run_metadata"]) == 1
 
 
 def test_a_namespace_moves_every_relative_name(tmp_path, probe):

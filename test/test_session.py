@@ -568,7 +568,7 @@ def test_the_bag_metadata_says_what_ran_and_how_it_ended(run):
     assert 0.0 < float(meta["mta_sim_ros.run"]["position_error_m"]) < 1e-6  # the companion followed the run
     topics = {t for t, _, _ in read_messages(str(bag))}
     assert topics == {"/hitch_poses", "/cart_velocities", "/traction_power", "/applied_steering", "/clock", "/markers",
-                      "/tf", "/tf_static", "/joint_states", "/odom", "/robot_description"}
+                      "/tf", "/tf_static", "/joint_states", "/odom", "/robot_description", "/run_metadata"}
 
 
 def test_the_session_does_not_import_ros():

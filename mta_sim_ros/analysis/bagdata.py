@@ -13,7 +13,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..bag import read_messages, read_metadata
+from ..bag import read_messages, read_metadata, summary
+from ..messages.topics import RUN_METADATA_TOPIC, RUN_METADATA_TYPE
 from ..node.runlog import RECORD, recorded_scene_name, recorded_train
 
 # The topics the simulator writes, by the last component of their names.
@@ -116,14 +117,37 @@ def _find_topics(names: Iterable[str]) -> tuple[dict[str, str], list[str]]:
     return found, notes
 
 
+def run_record(path) -> dict[str, str] | None:
+    """The run's record ``mta_sim_ros`` (scene, train, method, step, rate, clock_offset, ...): the
+    bag's metadata record, else the first message of the node's latched topic ``run_metadata``
+    (topics.RUN_METADATA_TOPIC, under any namespace: a bag of another recorder, ros2 bag record or
+    a conversion by rosbags, which keep messages but not metadata records); None when neither."""
+    import json
+
+    meta = read_metadata(path).get(RECORD)
+    if meta:
+        return meta
+    topics = [t for t, info in summary(path).items()
+              if t.rsplit("/", 1)[-1] == RUN_METADATA_TOPIC and info["type"] == RUN_METADATA_TYPE and info["count"]]
+    for _, _, msg in read_messages(str(path), sorted(topics)[:1]):
+        try:
+            record = json.loads(msg.data)
+        except ValueError:
+            return None
+        if isinstance(record, dict) and all(isinstance(k, str) and isinstance(v, str) for k, v in record.items()):
+            return record
+        return None
+    return None
+
+
 def _train_from_metadata(path: Path) -> tuple[Any, str]:
-    """The train (model.spec.Train) and scene name from the bag's ``mta_sim_ros`` metadata: its
+    """The train (model.spec.Train) and scene name from the bag's run record (run_record): its
     recorded texts, parsed by the loader's rules (runlog.recorded_train); no file it names is
     opened."""
-    meta = read_metadata(path).get(RECORD)
+    meta = run_record(path)
     if not meta:
-        raise AnalyzeError(f"{path}: no metadata record '{RECORD}': the bag was not written by mta run or the "
-                           "mta_sim_ros node")
+        raise AnalyzeError(f"{path}: no metadata record '{RECORD}' and no {RUN_METADATA_TOPIC} topic: the bag was "
+                           "not written by mta run or of the mta_sim_ros node")
     return recorded_train(meta, str(path)), recorded_scene_name(meta, str(path))
 
 

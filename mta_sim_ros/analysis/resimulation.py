@@ -18,13 +18,13 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from ..bag import read_messages, read_metadata, summary
+from ..bag import read_messages, summary
 from ..messages.topics import WATCHDOG_TOPIC
 from ..node.commands import Setting, ackermann_setting, command_ranges, hold, twist_setting
 from ..node.runlog import RECORD, recorded_options, recorded_scene
 from ..physics.spec import INTEGRATOR_METHODS as METHODS
 from ..validate import MAX_TICKS, fail, is_finite, show, step_floor
-from .bagdata import last_component
+from .bagdata import last_component, run_record
 
 #: Outputs compared (last name component of the topic).
 OUTPUTS = ("hitch_poses", "cart_velocities", "traction_power", "applied_steering")
@@ -252,9 +252,10 @@ def rebuilt(bag: str, method: str | None, step: float | None):
         fail("--method", show(method), f"one of {', '.join(METHODS)}")
     if step is not None and not (is_finite(step) and step > 0):
         fail("--step", show(step), "a finite number > 0")
-    meta = read_metadata(bag).get(RECORD)
+    meta = run_record(bag)
     if meta is None:
-        raise ResimulationError(f"{bag} has no metadata record {RECORD} (not a bag of mta run or the node)")
+        raise ResimulationError(f"{bag} has no metadata record {RECORD} and no run_metadata topic (not a bag of "
+                                "mta run or of the node)")
     node_bag = any(k.startswith("param.") for k in meta)
     recorded = recorded_options(meta, str(bag))
     recorded_method, recorded_step, rate = recorded["method"], recorded["step"], recorded["rate"]

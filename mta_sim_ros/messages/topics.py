@@ -79,15 +79,22 @@ FRAME_TOPICS = {
     "robot_description": "std_msgs/msg/String",
 }
 
+#: The node's run: its bag metadata record ``mta_sim_ros`` (the scene and train as read, method,
+#: step, rate, clock_offset, ...) as a JSON object of strings, published latched at each run's start
+#: (start, reset), so that a bag of any recorder (ros2 bag record, a conversion by rosbags) can be
+#: analysed and re-simulated as the node's own bag can (analysis/bagdata.run_record reads either).
+RUN_METADATA_TOPIC = "run_metadata"
+RUN_METADATA_TYPE = "std_msgs/msg/String"
+
 #: Topics published once (at start, and again when they change) with QoS transient-local, depth 1,
 #: so a late subscriber gets them; each bag holds them from its start.
-LATCHED_TOPICS = ("/tf_static", "robot_description")
+LATCHED_TOPICS = ("/tf_static", "robot_description", RUN_METADATA_TOPIC)
 #: Their offered_qos_profiles in a bag (mta replay republishes them latched).
 LATCHED_QOS_YAML = qos_profiles_yaml(durability="transient_local", depth=1)
 
 #: Every topic of a node's bag (relative names as the node uses them) -> type.
 BAG_TOPICS = {**TOPICS, **FRAME_TOPICS, **MESSAGE_COMMANDS, "markers": MARKERS_TYPE, "/diagnostics": DIAGNOSTICS_TYPE,
-              WATCHDOG_TOPIC: WATCHDOG_TYPE}
+              WATCHDOG_TOPIC: WATCHDOG_TYPE, RUN_METADATA_TOPIC: RUN_METADATA_TYPE}
 
 
 def qualified(topic: str, namespace: str = "/") -> str:

@@ -32,6 +32,7 @@ to the pacing (lockstep ticks on answers).
 """
 from __future__ import annotations
 
+import json
 import math
 import time
 import warnings
@@ -39,6 +40,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from ..bag import MessageDefinitionNotFound, message_definition
+from ..bag.cdr import encode
 from ..config import resolve_config_path
 from ..integrate import IntegrationError
 from ..messages import Encoders as MessageEncoders
@@ -48,6 +50,8 @@ from ..messages.topics import (
     LATCHED_QOS_YAML,
     LATCHED_TOPICS,
     MESSAGE_COMMANDS,
+    RUN_METADATA_TOPIC,
+    RUN_METADATA_TYPE,
     STAMPED_CMD_VEL_TYPE,
     WATCHDOG_TOPIC,
     qualified,
@@ -140,8 +144,10 @@ class RunSession:
         self.recorder = self._recorder(namespace, background)
         self.logged_bag_error = ""
         self.ticks_waiting_for_bag = 0  # timer firings held while the bag writer was behind
+        run = self._latch_run_metadata()
         if self.recorder is not None:
             self._start_bag()
+        self.publish(run)
         self._publish_latched(LATCHED_TOPICS)
         self.pace = self._pace(namespace)  # from now: the timer's start
         self.log.info(
@@ -209,6 +215,14 @@ class RunSession:
     def _watchdog_timeout(self) -> float:
         """The watchdog's timeout: the parameter's, or 0 (never stale) in lockstep."""
         return 0.0 if self.cfg["lockstep"] else self.cfg["watchdog_timeout"]
+
+    def _latch_run_metadata(self) -> dict[str, bytes]:
+        """{run_metadata: its CDR bytes} of this run (topics.RUN_METADATA_TOPIC: the bag's record as
+        JSON), kept with the latched messages so that the run's bag records it from its start."""
+        record = {**self.run_metadata(), "clock_offset": repr(self.clock_offset)}
+        msgs = {RUN_METADATA_TOPIC: encode(RUN_METADATA_TYPE, {"data": json.dumps(record, sort_keys=True)})}
+        self.messages.latched.update(msgs)
+        return msgs
 
     def _publish_latched(self, topics: Sequence[str]) -> None:
         """Publish and record these latched topics (topics.LATCHED_TOPICS) as they are now: at
@@ -360,7 +374,9 @@ class RunSession:
         self.inputs.restart(self.scene.initial.steering, self.sim.v_set)
         self.halted = ""
         self.pace.restart(self.now)  # lockstep: step 1 again
+        run = self._latch_run_metadata()
         path = self._start_bag()
+        self.publish(run)
         message = f"reset to the start of '{self.scene.name}' at t = {self.now:.3f} s"
         if path:
             message += f"; recording {path}"
