@@ -5,6 +5,7 @@ re-simulated as the node's own bag is."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -13,6 +14,9 @@ from test_session import Run
 from mta_sim_ros.analysis import load_bag, resimulate
 from mta_sim_ros.analysis.bagdata import run_record
 from mta_sim_ros.bag import read_messages, read_metadata
+from mta_sim_ros.node.run_session import PATH_FIELDS
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def steered_run(tmp_path, **overrides) -> Run:
@@ -48,7 +52,11 @@ def test_the_topic_holds_the_bags_record_from_each_runs_start(tmp_path):
     first, second = r.bags()
     for bag in (first, second):
         [(_, t, msg)] = list(read_messages(str(bag), ["/run_metadata"]))
-        assert json.loads(msg.data) == read_metadata(bag)["mta_sim_ros"]
+        published, record = json.loads(msg.data), read_metadata(bag)["mta_sim_ros"]
+        assert published.keys() == record.keys() and len(published) > 20
+        for key, value in record.items():  # the same, files named without their folders
+            assert published[key] == (value if key not in PATH_FIELDS else Path(value).name), key
+        assert str(tmp_path) not in msg.data and str(REPO) not in msg.data and published["param.bag_dir"] == "bags"
     assert len(r.topic("run_metadata")) == 2  # published at each run's start
     assert run_record(second)["clock_offset"] != run_record(first)["clock_offset"]
 
@@ -61,7 +69,7 @@ def test_a_bag_of_another_recorder_is_analysed_and_resimulated(tmp_path):
     assert "mta_sim_ros" not in read_metadata(other)  # what a recorder other than the node writes
     with AnyReader([bag]) as a, AnyReader([other]) as b:
         assert [(c.topic, t, raw) for c, t, raw in a.messages()] == [(c.topic, t, raw) for c, t, raw in b.messages()]
-    assert run_record(other) == read_metadata(bag)["mta_sim_ros"]
+    assert run_record(other)["train_yaml"] == read_metadata(bag)["mta_sim_ros"]["train_yaml"]
     mine, theirs = load_bag(str(bag)), load_bag(str(other))
     assert theirs.train.carts == mine.train.carts and theirs.scene_name == mine.scene_name
     for series in ("poses", "power", "command", "applied"):

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 import warnings
 from pathlib import Path
@@ -71,6 +72,9 @@ from .status import Status, status
 from .tick_messages import Encoders, TickMessages
 from .timing import NoProfile, TickProfile, TickTiming
 from .watchdog import SteeringWatchdog
+
+#: the run record's fields that name a file or folder (published by their last component only)
+PATH_FIELDS = ("scene_file", "train_file", "param.scene_file", "param.bag_dir")
 
 #: Seconds between two log lines about bad commands on one topic (/diagnostics says every one).
 WARN_EVERY = 1.0
@@ -218,8 +222,11 @@ class RunSession:
 
     def _latch_run_metadata(self) -> dict[str, bytes]:
         """{run_metadata: its CDR bytes} of this run (topics.RUN_METADATA_TOPIC: the bag's record as
-        JSON), kept with the latched messages so that the run's bag records it from its start."""
-        record = {**self.run_metadata(), "clock_offset": repr(self.clock_offset)}
+        JSON, its files named without their folders: what is published says nothing of this
+        machine's paths), kept with the latched messages so that the run's bag records it from its
+        start."""
+        record = {key: os.path.basename(value.rstrip("/")) if key in PATH_FIELDS else value
+                  for key, value in {**self.run_metadata(), "clock_offset": repr(self.clock_offset)}.items()}
         msgs = {RUN_METADATA_TOPIC: encode(RUN_METADATA_TYPE, {"data": json.dumps(record, sort_keys=True)})}
         self.messages.latched.update(msgs)
         return msgs
