@@ -142,6 +142,12 @@ TOOL_FAULTS = [
     ("follow-override-not-yaml", ["follow", "--ros-args", "-p", "x:={a: 1"], ["--ros-args -p 'x:={a: 1'", "one YAML value"]),
     ("node-override-not-yaml", ["node", "--ros-args", "-p", "x:=[unclosed"], ["--ros-args -p 'x:=[unclosed'", "one YAML value"]),
     ("reverse-override-no-value", ["reverse", "--ros-args", "-p", "novalue"], ["--ros-args -p 'novalue'", "NAME:=VALUE"]),
+    # a remapped node name or namespace rcl refuses only when it makes the node
+    *((f"{command}-node-name-too-long", [command, "--ros-args", "-r", "__node:=" + "n" * 300],
+       ["--ros-args", "node name length should not exceed"])
+      for command in ("node", "follow", "reverse", "maneuver", "rsp_feed")),
+    ("reverse-namespace-too-long", ["reverse", "--ros-args", "-r", "__ns:=/" + "n" * 300],
+     ["--ros-args -r __ns:=/nnn", "invalid node namespace"]),
     ("reverse-settle-past-the-distance", ["reverse", "--distance", "10", "--settle", "50"],
      ["--settle: 50", "less than --distance 10 m"]),
     ("follow-settle-past-a-pass", ["follow", "--length", "30", "--settle", "40"], ["--settle: 40", "less than a pass"]),

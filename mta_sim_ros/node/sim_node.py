@@ -49,6 +49,7 @@ import gc
 import signal
 import sys
 import time
+import warnings
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
@@ -102,7 +103,12 @@ def descriptor(p: Param) -> ParameterDescriptor:
 class SimNode(Node):
     def __init__(self, profile=None, **kwargs):
         """``profile``: a timing.TickProfile told where each tick's time goes (benchmarks)."""
-        super().__init__("mta_sim", **kwargs)
+        try:
+            with warnings.catch_warnings():  # rclpy's own warning about the node it could not make
+                warnings.simplefilter("ignore", RuntimeWarning)
+                super().__init__("mta_sim", **kwargs)
+        except RuntimeError as err:  # rclpy's RCLError: a node name or namespace a remap made that rcl refuses
+            raise ConfigError(f"--ros-args: {one_line(str(err))}") from None
         for p in PARAMS:
             try:
                 self.declare_parameter(p.name, p.default, descriptor(p))

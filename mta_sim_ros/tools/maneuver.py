@@ -15,6 +15,7 @@ import dataclasses
 import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import rclpy
@@ -168,7 +169,14 @@ def spin_until_done(make_node, ros_args: list[str]) -> int:
     stop = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: stop.append(signum))
-    node = make_node()
+    try:
+        with warnings.catch_warnings():  # rclpy's own warning about the node it could not make
+            warnings.simplefilter("ignore", RuntimeWarning)
+            node = make_node()
+    except RuntimeError as err:  # rclpy's RCLError: a node name or namespace a remap made that rcl refuses
+        rclpy.try_shutdown()
+        print(f"mta: --ros-args {' '.join(ros_args[1:])}: {one_line(str(err))}", file=sys.stderr)
+        return EXIT_INPUT
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
