@@ -59,15 +59,17 @@ def test_two_lockstep_runs_of_mta_follow_record_the_same_messages_faster_than_re
     in lockstep; two runs give bags whose message records are the same, bit for bit: the same
     topics, and for every topic but /diagnostics the same messages at the same log times with
     the same bytes. /diagnostics is left out of the comparison (it carries wall-time figures:
-    tick compute times, the measured real-time factor, the command age), and so is the closing
-    metadata record (tick timings): neither is a message of the run's physics or commands.
+    tick compute times, the measured real-time factor, the command age), and so are /run_metadata
+    (the run's record, which names each run's bag folder) and the closing metadata record (tick
+    timings): none is a message of the run's physics or commands.
     Each run simulates faster than real time: more than twice as many simulated seconds as
     wall seconds between the first and last /clock heard (a bound far below what it does,
     not a timing to meet)."""
     runs = [follow_once(tmp_path, name, probe) for name in ("first", "second")]
     records = []
     for bag, _, _ in runs:
-        records.append([(topic, t, bytes(data)) for topic, t, data in raw_messages(bag) if topic != "/diagnostics"])
+        records.append([(topic, t, bytes(data)) for topic, t, data in raw_messages(bag)
+                        if topic not in ("/diagnostics", "/run_metadata")])
     first, second = records
     assert {r[0] for r in first} == {r[0] for r in second}
     assert len(first) == len(second) and first == second
