@@ -417,7 +417,7 @@ def test_a_report_of_a_run_that_measured_nothing_is_strict_json():
     nothing): the --report writer makes them null, so any JSON reader takes the file."""
     import json
 
-    from mta_sim_ros.validate import json_text
+    from mta_sim_ros.writing import json_text
 
     figures = {"samples": 0, "max_m": math.nan, "rms_m": math.nan, "gain": [1.0, math.inf], "centre": None}
     text = json_text(figures)

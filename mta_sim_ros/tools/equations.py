@@ -12,7 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..validate import distinct_output, fail, output_file, path_arg, show, write_output
+from ..validate import distinct_output, fail, output_file, path_arg, show
+from ..writing import write_output
 
 #: the most carts whose expanded forms are printed (5 carts: 235 kB of text, ~1 s; 6: ~0.7 MB)
 EXPAND_LIMIT = 5

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validate import EXIT_INPUT, InputError, Range, fail, number_arg, output_folder, show, write_together
+from ..validate import EXIT_INPUT, InputError, Range, fail, number_arg, output_folder, show
+from ..writing import write_together
 
 OVERLAP = Range("in [0, 0.5)", lambda x: 0.0 <= x < 0.5)
 ANGLE = Range.of(-360.0, 360.0, "deg")

@@ -163,7 +163,7 @@ def report_markdown(data: dict) -> str:
 
 def write_report(paths: dict, data: dict) -> None:
     """The pictures and the report through their partial files, renamed once all are written."""
-    from ..validate import write_together
+    from ..writing import write_together
 
     def write(temporary: dict) -> None:
         for name, figure in (("field.png", field_figure), ("tracking.png", tracking_figure)):

@@ -36,7 +36,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..validate import EXIT_INPUT, InputError, Range, fail, finite_or_none, number_arg, output_folder, show
+from ..validate import EXIT_INPUT, InputError, Range, fail, number_arg, output_folder, show
+from ..writing import finite_or_none
 
 if TYPE_CHECKING:
     from ..controllers.implement.work import Work
@@ -232,7 +233,7 @@ def metrics_markdown(work: Work) -> str:
 
 def write_run(paths: dict, work: Work) -> None:
     """Every output through its partial file, renamed once all are written."""
-    from ..validate import write_together
+    from ..writing import write_together
 
     def write(temporary: dict) -> None:
         with open(temporary["trace.npz"], "wb") as stream:

@@ -20,7 +20,8 @@ import sys
 
 import numpy as np
 
-from ..validate import Range, distinct_output, fail, number_arg, output_file, show, write_together
+from ..validate import Range, distinct_output, fail, number_arg, output_file, show
+from ..writing import write_together
 
 SPEED = Range.of(-100.0, 100.0, "m/s")
 STEERING = Range.of(-math.pi / 2, math.pi / 2, "rad")

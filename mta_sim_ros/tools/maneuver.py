@@ -131,7 +131,7 @@ def spin_and_report(make_node, ros_args: list[str], report: str | None = None) -
     """``spin_until_done``, then the node's ``figures`` written as JSON to ``report`` (if given):
     what the example controllers (follow, reverse) measured; a figure not measured (no sample: an
     interrupted run) is null, not NaN, and a report that cannot be written is one line, exit 1."""
-    from ..validate import json_text, write_output
+    from ..writing import json_text, write_output
 
     holder = {}
 
