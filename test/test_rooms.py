@@ -201,3 +201,18 @@ def test_the_scans_see_what_they_look_for():
                       "def test_b():\n    with pytest.MonkeyPatch.context() as mp, mock.patch('os.getcwd'):\n"
                       "        pass\n")
     assert len(patching_tools(tests)) == 4
+
+
+def test_no_file_over_600_lines_and_no_function_over_80():
+    """The house's size rules (docs/architecture.md): a file a newcomer can read, a function that
+    fits a screen or two, in the package."""
+    too_long = []
+    for path in sorted((REPO / "mta_sim_ros").rglob("*.py")):
+        text = path.read_text()
+        if len(text.splitlines()) > 600:
+            too_long.append(f"{path.relative_to(REPO)}: {len(text.splitlines())} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 80:
+                too_long.append(f"{path.relative_to(REPO)}:{node.lineno} {node.name}: "
+                                f"{node.end_lineno - node.lineno + 1} lines")
+    assert not too_long, too_long
