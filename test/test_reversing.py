@@ -99,15 +99,41 @@ def test_without_the_controller_the_train_folds():
     assert "jackknife" in run.stopped and run.distance < 100.0
 
 
+#: the free-running node's real-time factor until the controller has answered a pose: a tick every
+#: 0.4 s of wall time, so that DDS discovery between the two processes (seconds on a loaded
+#: machine) leaves the reversing train unsteered for a fraction of a simulated second, not for
+#: the seconds in which its hitch modes, growing at V / l_k, fold it
+CREEP = 0.05
+
+
+def full_speed(probe, node, controller, factor: float) -> None:
+    """Once the controller has answered a pose of the node (an ackermann_cmd heard), the node's
+    real_time_factor set to ``factor`` through its parameter service."""
+    from ackermann_msgs.msg import AckermannDriveStamped
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    answers = probe.subscribe("/ackermann_cmd", AckermannDriveStamped)
+    assert probe.spin_until(lambda: answers or controller.poll() is not None or node.poll() is not None, 120.0), \
+        "the controller answered no pose"
+    value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(factor))
+    reply = probe.call(SetParameters, "/mta_sim/set_parameters",
+                       SetParameters.Request(parameters=[Parameter(name="real_time_factor", value=value)]))
+    assert reply.results[0].successful, reply.results[0].reason
+
+
 def run_over_dds(tmp_path, probe, scene: dict, pacing: dict, *extra):
     """``mta reverse`` and then the node (recording) as two processes over DDS until either ends:
-    (the controller's exit code, its output, its report); the node stopped with SIGTERM, exit 0."""
+    (the controller's exit code, its output, its report); the node stopped with SIGTERM, exit 0.
+    Free-running, the node creeps (CREEP) until the controller has answered, then runs at the
+    factor asked for."""
     from dds import start_mta, start_node, stop, write_params
 
     scene_path = tmp_path / "backing.yaml"
     scene_path.write_text(yaml.safe_dump(scene))
+    start = {**pacing, "real_time_factor": CREEP} if "real_time_factor" in pacing else pacing
     params = write_params(tmp_path / "p.yaml", scene_file=str(scene_path), bag_dir=str(tmp_path / "bags"),
-                          publish_rate=50.0, record=True, **pacing)
+                          publish_rate=50.0, record=True, **start)
     report = tmp_path / "reverse.json"
     # the controller first: free-running, the node reverses from its first tick on, and a train left
     # unsteered while a controller starts would fold (the hitch modes grow at V / l_k)
@@ -119,6 +145,8 @@ def run_over_dds(tmp_path, probe, scene: dict, pacing: dict, *extra):
         assert probe.spin_until(lambda: probe.node.count_publishers("/ackermann_cmd") > 0 or
                                 controller.poll() is not None, 120.0), "the controller did not start"
         node = start_node(params, tmp_path / "node.log")
+        if "real_time_factor" in pacing:
+            full_speed(probe, node, controller, pacing["real_time_factor"])
         finished = probe.spin_until(lambda: controller.poll() is not None or node.poll() is not None, 240.0)
         assert finished, "the controller did not finish: " + (tmp_path / "node.log").read_text()[-2000:]
         return controller.returncode, controller.stdout.read(), json.loads(report.read_text())
