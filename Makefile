@@ -20,7 +20,7 @@ PYTHON ?= python3.11
 VENV ?= .venv
 VPY := $(VENV)/bin/python
 PIP_STAMP := $(VENV)/.mta_sim_ros.stamp
-# the venv is complete once tf2_msgs and ackermann_msgs are built into it (tools/build_interfaces.sh)
+# the venv is complete once tf2_msgs, ackermann_msgs and simulation_interfaces are built into it (tools/build_interfaces.sh)
 STAMP := $(VENV)/.mta_interfaces.stamp
 INTERFACE_FILES := $(shell find interfaces -type f) tools/build_interfaces.sh tools/drop_missing_include_dirs.cmake
 # The second stack (make test-noble): Ubuntu 24.04's numpy, scipy, matplotlib and numba, the
@@ -63,7 +63,7 @@ $(PIP_STAMP) $(NOBLE_PIP_STAMP): requirements.txt setup.py setup.cfg
 	$(@D)/bin/python -m pip install -q -e . $(CONSTRAINTS)
 	@touch $@
 
-# tf2_msgs and ackermann_msgs have no PyPI wheels: built from interfaces/ with rosidl into each
+# tf2_msgs, ackermann_msgs and simulation_interfaces have no PyPI wheels: built from interfaces/ with rosidl into each
 # venv, again only when interfaces/ or the build script change, or the venv was updated.
 $(STAMP): $(PIP_STAMP)
 $(NOBLE_STAMP): $(NOBLE_PIP_STAMP)

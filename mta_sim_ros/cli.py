@@ -172,7 +172,8 @@ def ros_missing(err: ModuleNotFoundError) -> bool:
 def missing_ros(command: str | None, err: ModuleNotFoundError) -> int:
     """One line for a ROS command run where ROS 2 (or one of its message packages) is missing."""
     print(f"mta {command or ''}: needs ROS 2 Jazzy's {err.name} ({err}): source /opt/ros/jazzy/setup.bash, "
-          "or make venv (README: the ROS packages as wheels, tf2_msgs and ackermann_msgs built into it); "
+          "or make venv (README: the ROS packages as wheels, tf2_msgs, ackermann_msgs and simulation_interfaces "
+          "built into it); "
           "mta run, check, analyze, equations, linearize, sweep and field need no ROS", file=sys.stderr)
     return 1
 

@@ -1,11 +1,14 @@
-"""tf2_msgs and ackermann_msgs as `make venv` builds them (tools/build_interfaces.sh), held to upstream.
+"""tf2_msgs, ackermann_msgs and simulation_interfaces as `make venv` builds them
+(tools/build_interfaces.sh), held to upstream.
 
-Neither has a PyPI wheel: the venv gets them from the definitions in interfaces/ through rosidl.
+None has a PyPI wheel: the venv gets them from the definitions in interfaces/ through rosidl.
 What cannot drift here is upstream itself:
 
 * the files of interfaces/ are upstream's, byte for byte: their git blob ids are the ones of
   ros2/geometry2 at 646342c6164e837d69460e3d28e7a025396544f6 (branch jazzy, tf2_msgs 0.36.4+) and
-  of ros-drivers/ackermann_msgs at f61ddd8978bc1604b8beab958bb057ed344225d0 (branch ros2, 2.0.2+);
+  of ros-drivers/ackermann_msgs at f61ddd8978bc1604b8beab958bb057ed344225d0 (branch ros2, 2.0.2+)
+  and of ros-simulation/simulation_interfaces at tag 1.5.1 (a3c60ff2, the version Jazzy's
+  rosdistro releases: release/jazzy/simulation_interfaces/1.5.1-1);
   the copies installed in the venv's share/ (what the bag writer reads) are the same bytes;
 * each type's hash (RIHS01, what rmw compares between publisher and subscription) is Jazzy's, see
   JAZZY_HASHES: what the build installed, what another process announces over DDS, and what
@@ -54,6 +57,49 @@ UPSTREAM_BLOBS = {
     "ackermann_msgs/LICENSE": "bea243a0565dc6d0a72ff6b9d27e18cfdb38de00",
     "ackermann_msgs/msg/AckermannDrive.msg": "2ee2939b4649838409b93ffcc0de1b05181fa9d6",
     "ackermann_msgs/msg/AckermannDriveStamped.msg": "1182106912745e171dfd17995d4b2e9db2a2a32d",
+    "simulation_interfaces/CHANGELOG.rst": "408563701d658f3470fbf95046cd79969260c2f6",
+    "simulation_interfaces/CMakeLists.txt": "57f072702e4cc275bb645652c04d370ac6810670",
+    "simulation_interfaces/LICENSE": "261eeb9e9f8b2b4b0d119366dda99c6fd7d35c64",
+    "simulation_interfaces/README.md": "42e5c84de5082c291ff5505c862f13d036dfc4a3",
+    "simulation_interfaces/action/SimulateSteps.action": "4ba9ab72acb0e52e09b04326e88f3d77aeebb808",
+    "simulation_interfaces/msg/Bounds.msg": "ed16b8924f460dabc48d5f836ae68f7361277cdd",
+    "simulation_interfaces/msg/EntityCategory.msg": "63d3c0f0f5706a099d6502912aba473c8a9742b8",
+    "simulation_interfaces/msg/EntityFilters.msg": "967ffacda704c3ed800f042bf75805f2ce0fe98b",
+    "simulation_interfaces/msg/EntityInfo.msg": "eeb7fdc3a292edb449bc9e16d271788ec82496fa",
+    "simulation_interfaces/msg/EntityState.msg": "c1a128dd617fdde50db2ed023df24c57b86fc4a0",
+    "simulation_interfaces/msg/NamedPose.msg": "54dec31be08843c7c99b79dc1634a3d6a895fb0b",
+    "simulation_interfaces/msg/Resource.msg": "e16aeb2136de95b36c401b38cd698582f9a7b310",
+    "simulation_interfaces/msg/Result.msg": "64f3879daecb0eaeeab3b363b8e8bb6c3cb987e3",
+    "simulation_interfaces/msg/SimulationState.msg": "24246f7aae53829e307652f4ce1fccb0c0ae8c42",
+    "simulation_interfaces/msg/SimulatorFeatures.msg": "1073dee5931dd85e353939187f80bcdb527886f2",
+    "simulation_interfaces/msg/SpawnEntity.msg": "845e1e5578626697533ff666426f6cc5949fb60f",
+    "simulation_interfaces/msg/SpawnResult.msg": "5b79c962a591b54fa603f971fb8900d0f058a118",
+    "simulation_interfaces/msg/Spawnable.msg": "d1f874d5478b51ec5c77e18a15b73514357b705b",
+    "simulation_interfaces/msg/TagsFilter.msg": "5d087f72fdd09775d300addf1ba496e0b5fd25db",
+    "simulation_interfaces/msg/WorldResource.msg": "b10615e8e1c91e68f2377a2a55e76a7c3c29f1da",
+    "simulation_interfaces/package.xml": "ca6b84efb9ab8115403e2cf00cffdf4cb7f4291b",
+    "simulation_interfaces/srv/DeleteEntity.srv": "334c92b7c66a1ea1938b1f153460d373d1f2beea",
+    "simulation_interfaces/srv/GetAvailableWorlds.srv": "be520edff0752fab1e7e96679564173b42e0d11c",
+    "simulation_interfaces/srv/GetCurrentWorld.srv": "7ade9b39aac24c69617ffe2d52314b32d354e7d2",
+    "simulation_interfaces/srv/GetEntities.srv": "3cbf707a0d454b942e1b9eeff85987c8e525e485",
+    "simulation_interfaces/srv/GetEntitiesStates.srv": "1e18846fb3f4bf1881fd1bd06d9f27150274074c",
+    "simulation_interfaces/srv/GetEntityBounds.srv": "3c366402ffc81d094d1d3a0afbfb70957bf11ebf",
+    "simulation_interfaces/srv/GetEntityInfo.srv": "09370bc9b502d3d373ecfd1d10dcc8eeeb572ced",
+    "simulation_interfaces/srv/GetEntityState.srv": "b054ec26440a62775d242d6f8521f491c5563293",
+    "simulation_interfaces/srv/GetNamedPoseBounds.srv": "088b9d3e47e40665aad2341d99c3c7005da39170",
+    "simulation_interfaces/srv/GetNamedPoses.srv": "cb9158c42a6250740335509655469a996676521f",
+    "simulation_interfaces/srv/GetSimulationState.srv": "9b4cd2cdbc52ac4bbd2e372ed838fa923b041830",
+    "simulation_interfaces/srv/GetSimulatorFeatures.srv": "785efa84e2762a9c612e17108b9b201743fa09c3",
+    "simulation_interfaces/srv/GetSpawnables.srv": "ad18d0f9d9d1e703755b2ee9d986c65c36439e83",
+    "simulation_interfaces/srv/LoadWorld.srv": "c4736d4a31a3e682ff5efbe18f62ad674d57c2f3",
+    "simulation_interfaces/srv/ResetSimulation.srv": "a53afd53dc65c42566227e7d7f7ce3cce61c10d7",
+    "simulation_interfaces/srv/SetEntityInfo.srv": "d77561e4b7a6af1cc46360c8114295fa011acc06",
+    "simulation_interfaces/srv/SetEntityState.srv": "2e42e8b444090d29e7dd679340e0fdea0f1057bf",
+    "simulation_interfaces/srv/SetSimulationState.srv": "e5a96044049b675d4e77972008883b95b98d7ba6",
+    "simulation_interfaces/srv/SpawnEntities.srv": "677b0a5dc67f2cd86c420007ceed41ae81417f0e",
+    "simulation_interfaces/srv/SpawnEntity.srv": "de4696f754635e7af473f7621632504a21e20721",
+    "simulation_interfaces/srv/StepSimulation.srv": "6ec13766930f8accaee68db20391931379753d0f",
+    "simulation_interfaces/srv/UnloadWorld.srv": "aa0475215397a45cfbc4ff28338bfc25bd81169a",
 }
 
 #: RIHS01 type hashes of ROS 2 Jazzy. Computed by Jazzy's own rosidl (rosidl_adapter and
@@ -129,6 +175,32 @@ def test_rosbags_computes_the_jazzy_type_hash_from_the_installed_definitions(typ
         for path in sorted((installed_share(pkg) / "msg").glob("*.msg")):
             store.register(get_types_from_msg(path.read_text(), f"{pkg}/msg/{path.stem}"))
     assert store.hash_rihs01(type_name) == JAZZY_HASHES[type_name]
+
+
+#: The messages of simulation_interfaces the node's services carry (sim_services.py).
+SIMULATION_MESSAGES = ["simulation_interfaces/msg/Result", "simulation_interfaces/msg/SimulationState",
+                       "simulation_interfaces/msg/SimulatorFeatures"]
+
+
+@pytest.mark.parametrize("type_name", SIMULATION_MESSAGES)
+def test_rosbags_and_the_build_agree_on_the_simulation_interfaces_hashes(type_name):
+    """Two implementations of RIHS01 (rosidl's, in the build; rosbags') from upstream's files."""
+    pkg, kind, name = type_name.split("/")
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for path in sorted((installed_share(pkg) / "msg").glob("*.msg")):
+        store.register(get_types_from_msg(path.read_text(), f"{pkg}/msg/{path.stem}"))
+    description = json.loads((installed_share(pkg) / kind / f"{name}.json").read_text())
+    assert description["type_hashes"][0] == {"type_name": type_name, "hash_string": store.hash_rihs01(type_name)}
+
+
+def test_the_simulation_services_import_with_the_standards_constants():
+    from simulation_interfaces.msg import SimulatorFeatures
+    from simulation_interfaces.srv import ResetSimulation, StepSimulation
+
+    assert StepSimulation.Request.get_fields_and_field_types() == {"steps": "uint64"}
+    assert StepSimulation.Request().steps == 1
+    assert (ResetSimulation.Request.SCOPE_STATE, ResetSimulation.Request.SCOPE_ALL) == (2, 255)
+    assert (SimulatorFeatures.SIMULATION_RESET, SimulatorFeatures.STEP_SIMULATION_MULTIPLE) == (20, 32)
 
 
 @pytest.mark.parametrize("type_name", ["tf2_msgs/msg/TFMessage", "tf2_msgs/msg/TF2Error"])

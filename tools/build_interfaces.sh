@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Build the ROS 2 message packages under interfaces/ (tf2_msgs, ackermann_msgs) into a Python venv.
+# Build the ROS 2 message packages under interfaces/ (tf2_msgs, ackermann_msgs, simulation_interfaces) into a Python venv.
 #
 # Neither has a PyPI wheel. On a ROS install they come from the system (rosdep installs the
 # exec_depends of package.xml); in the venv of `make venv` this script builds them from their
@@ -25,11 +25,11 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$(realpath -m "${1:-$root/.venv}")"
 prefix="$(realpath -m "${2:-$venv}")"
-packages=(tf2_msgs ackermann_msgs)
+packages=(tf2_msgs ackermann_msgs simulation_interfaces)
 
 for tool in cmake make cc c++; do
   if ! command -v "$tool" >/dev/null; then
-    echo "build_interfaces: $tool not found: building tf2_msgs and ackermann_msgs needs cmake, make" \
+    echo "build_interfaces: $tool not found: building the interfaces/ packages needs cmake, make" \
          "and a C and C++ compiler (on Debian: apt-get install cmake g++)" >&2
     exit 1
   fi
