@@ -39,7 +39,10 @@ Interface (relative names: ``--ros-args -r __ns:=/unit1`` moves everything but /
     publishes   hitch_poses, cart_velocities, traction_power, applied_steering (see topics.py),
                 markers (visualization_msgs/MarkerArray), /clock, /diagnostics (1 Hz),
                 /tf, /tf_static, joint_states, odom, robot_description (topics.FRAME_TOPICS)
-    services    reset (std_srvs/Trigger), pause (std_srvs/SetBool)
+    services    reset (std_srvs/Trigger), pause (std_srvs/SetBool); under the node's name the
+                standard simulator services of simulation_interfaces (sim_services.py):
+                ~/get_simulator_features, ~/get_simulation_state, ~/set_simulation_state,
+                ~/step_simulation, ~/reset_simulation
 QoS: ``ros_msgs.QOS`` (reliable, volatile, keep last 10) for everything but the latched topics
 /tf_static and robot_description, ``ros_msgs.LATCHED_QOS`` (transient-local, keep last 1).
 """
@@ -69,6 +72,7 @@ from ..validate import one_line
 from .params import PARAMS, ConfigError, Param, check_ros_args, override_problem
 from .ros_msgs import QOS
 from .run_session import RunSession
+from .sim_services import offer
 from .timing import reserve_cpu
 
 #: most commands of one topic taken at one firing of the tick timer (the reader holds QOS.depth)
@@ -143,6 +147,10 @@ class SimNode(Node):
         self.unheard: set[tuple] = set()  # (topic, publisher gid) already said
         self.create_service(Trigger, "reset", self._on_reset)
         self.create_service(SetBool, "pause", self._on_pause)
+        self.quitting = False  # SetSimulationState QUITTING: main() ends the spin loop
+        absent = offer(self, self.session, self._quit)
+        if absent:
+            self.get_logger().info(f"not offering the simulation_interfaces services: {absent}")
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.timer = None
@@ -221,6 +229,9 @@ class SimNode(Node):
         response.success = True
         return response
 
+    def _quit(self) -> None:
+        self.quitting = True
+
     def _on_set_parameters(self, params) -> SetParametersResult:
         reason = self.session.set_parameters({p.name: p.value for p in params})
         if self.session.timer_period != self.timer_period:
@@ -280,7 +291,7 @@ def main(argv: list[str] | None = None, profile=None) -> int:
             rclpy.try_shutdown()
             return 2
     try:
-        while not stop and rclpy.ok():
+        while not stop and not node.quitting and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
     finally:
         node.close()
