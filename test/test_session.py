@@ -352,7 +352,7 @@ def test_reset_closes_the_bag_with_its_figures_and_starts_again_at_the_time_reac
     first = r.s.recorder.path
     message = r.s.reset()
     second = r.s.recorder.path
-    assert message == f"reset to the start of 'headland_turn' at t = 2.000 s; recording {second}"
+    assert message == f"reset to the start of 'headland_turn' at t = 2.000 s; recording {second.name} in bag_dir"
     assert r.log.count("info", message) == 1 and second != first
     figures = read_metadata(first)["mta_sim_ros.run"]
     assert int(figures["tick_count"]) == 100 and float(figures["sim_time"]) == pytest.approx(2.0)

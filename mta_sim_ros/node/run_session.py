@@ -413,7 +413,7 @@ class RunSession:
         self.publish(run)
         message = f"reset to the start of '{self.scene.name}' at t = {self.now:.3f} s"
         if path:
-            message += f"; recording {path}"
+            message += f"; recording {path.name} in bag_dir"  # no local path in what is published
         elif self.recorder is not None:
             message += f"; not recording: {self.recorder.error}"
         self.log.info(message)
@@ -485,7 +485,7 @@ class RunSession:
             self.logged_bag_error = self.recorder.error
             self.log.error(self.recorder.error)
         else:
-            self.log.info(f"recording {path}")
+            self.log.info(f"recording {path.name} in bag_dir {self.cfg['bag_dir']}")
             self._record(dict(self.messages.latched))  # what a subscriber holds of the latched topics, from the bag's start
         return path
 
@@ -515,7 +515,7 @@ class RunSession:
             "fidelity_reason": self.sim.choice.reason,
             "fidelity_at_next_reset": self.cfg["fidelity"] or "the scene's",
             "paused": self.paused,
-            "bag": str(recorder.path) if recorder and recorder.recording else "",
+            "bag": recorder.path.name if recorder and recorder.recording else "",  # in bag_dir
             "lockstep": self.lockstep,
             "implement_lowered": self.inputs.lowered,
             "position_error_estimate_m": self.companion.error,
