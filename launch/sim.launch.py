@@ -42,6 +42,7 @@ from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
 from launch import LaunchDescription
+from mta_sim_ros.node.launch_support import require_packages, shutdown_on_failure
 from mta_sim_ros.node.params import BY_NAME, ConfigError, read_params_file
 
 PACKAGE = 'mta_sim_ros'
@@ -122,17 +123,23 @@ def launch_setup(context):
     with_rsp = flag('robot_state_publisher')
     if with_rsp:
         overrides['publish_cart_frames'] = False
+    # every optional package asked for, before any node starts (launch_support.py; ros2/launch#747)
+    asked = {'robot_state_publisher': 'robot_state_publisher:=true', 'rviz2': 'rviz:=true',
+             'foxglove_bridge': 'foxglove:=true'}
+    wanted = {'robot_state_publisher': with_rsp, 'rviz2': flag('rviz'), 'foxglove_bridge': flag('foxglove')}
+    require_packages({p: a for p, a in asked.items() if wanted[p]}, 'sim.launch.py')
 
     actions = [Node(
-        package=PACKAGE, executable='sim_node', namespace=namespace, output='screen',
+        package=PACKAGE, executable='sim_node', namespace=namespace, output='screen', on_exit=shutdown_on_failure,
         parameters=[arg('params_file'), overrides])]
     if with_rsp:
         actions += [
             Node(package='robot_state_publisher', executable='robot_state_publisher',
-                 name='robot_state_publisher', namespace=namespace, output='screen',
+                 name='robot_state_publisher', namespace=namespace, output='screen', on_exit=shutdown_on_failure,
                  parameters=[{'robot_description': PLACEHOLDER_URDF % prefix, 'use_sim_time': True}],
                  remappings=[('robot_description', 'robot_state_publisher/robot_description')]),
             Node(package=PACKAGE, executable='mta', name='mta_rsp_feed', namespace=namespace, output='screen',
+                 on_exit=shutdown_on_failure,
                  arguments=['rsp_feed', '--target', 'robot_state_publisher']),
         ]
     extra = shlex.split(arg('driver_args'))
@@ -142,10 +149,12 @@ def launch_setup(context):
             named += ['--param', item]
         actions.append(Node(
             package=PACKAGE, executable='mta', name='mta_maneuver', namespace=namespace, output='screen',
+            on_exit=shutdown_on_failure,
             arguments=['maneuver', '--scene', scene, *named, *extra]))
     elif arg('driver') == 'follow':
         actions.append(Node(
             package=PACKAGE, executable='mta', name='mta_follow', namespace=namespace, output='screen',
+            on_exit=shutdown_on_failure,
             arguments=['follow', '--scene', scene, *extra]))
     actions += [
         IncludeLaunchDescription(
