@@ -318,6 +318,21 @@ def test_colcon_installs_executables_for_ros2_run(colcon_install):
 
 
 @pytest.mark.slow
+def test_colcon_build_compiles_the_kernels_into_the_install(colcon_install):
+    """setup.py's InstallAndCompile: numba's cache (an index .nbi and the code .nbc of each
+    compiled function) lies beside the installed kernel sources, made by `mta compile` run on
+    the install, so that a first start of the installed node compiles nothing."""
+    _, install, proc = colcon_install
+    assert proc.returncode == 0, _output(proc)
+    assert 'mta compile: the kernels are in numba' in proc.stdout + proc.stderr, _output(proc)
+    [package] = install.glob(f'lib/python3*/site-packages/{PKG}')
+    cached = {p.parent.parent.relative_to(package).as_posix() + '/' + p.name.split('.')[0]
+              for p in package.rglob('__pycache__/*.nbi')}
+    assert {'physics/kernel/entries', 'integrate/rk', 'run/whole'} <= cached, sorted(cached)
+    assert all(list(package.rglob(f'__pycache__/{Path(c).name}.*.nbc')) for c in cached)
+
+
+@pytest.mark.slow
 def test_colcon_installs_share_files(colcon_install):
     src, install, proc = colcon_install
     assert proc.returncode == 0, _output(proc)
