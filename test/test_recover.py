@@ -11,9 +11,14 @@ from __future__ import annotations
 
 import hashlib
 import os
+import resource
+import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
+from dds import ros_env
 from hostile import mta
 
 from mta_sim_ros.bag import BagWriter, float64, read_messages
@@ -126,3 +131,73 @@ def test_another_existing_file_is_replaced_whole_and_a_symlink_to_it_kept(tmp_pa
     assert values == [float(i) for i in range(len(values))] and 0 < len(values) < 600
     assert digest(bag) == before
     assert not list(tmp_path.rglob("*.part"))
+
+
+# -- what a bag claims ---------------------------------------------------------------------------
+
+#: the address space the recovering process gets: far less than the records below claim
+ADDRESS_SPACE = 2 << 30
+
+
+def record(opcode: int, body: bytes) -> bytes:
+    """One MCAP record: opcode, u64 length, body."""
+    return bytes([opcode]) + struct.pack("<Q", len(body)) + body
+
+
+def claimed(folder: Path, tail: bytes) -> Path:
+    """A bag's header, then the crafted ``tail`` (what a damaged or hostile file holds)."""
+    path = folder / "claims.mcap"
+    with BagWriter(path) as bag:
+        bag.add_topic("/traction_power", "std_msgs/msg/Float64")
+    data = path.read_bytes()
+    header_end = 8 + 9 + struct.unpack("<Q", data[9:17])[0]  # magic, then the Header record
+    path.write_bytes(data[:header_end] + tail)
+    return path
+
+
+def recover_limited(folder: Path, bag: Path) -> subprocess.CompletedProcess:
+    """``mta recover`` under an address-space limit of ADDRESS_SPACE."""
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE, ADDRESS_SPACE))
+
+    return subprocess.run([sys.executable, "-m", "mta_sim_ros.cli", "recover", bag.name, "-o", "out.mcap"],
+                          cwd=folder, capture_output=True, text=True, timeout=120, env=ros_env(), preexec_fn=limit)
+
+
+def test_a_record_claiming_more_than_the_file_has_is_a_cut_tail_not_an_allocation(tmp_path):
+    """A message record whose length field says 3 GB, 100 bytes after it: the tail is dropped
+    (the scan stops there), nothing is allocated for it, exit 0."""
+    tail = bytes([0x05]) + struct.pack("<Q", 3_000_000_000) + bytes(100)
+    bag = claimed(tmp_path, tail)
+    done = recover_limited(tmp_path, bag)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert done.stdout.endswith(f"0 messages in 0 chunks recovered; dropped 0 chunks, 0 messages, {len(tail)} bytes\n")
+    assert list(read_messages(str(tmp_path / "out.mcap"))) == []
+
+
+def test_a_chunk_claiming_gigabytes_uncompressed_is_dropped_and_the_next_one_recovered(tmp_path):
+    """A chunk (its record complete) that says it holds 1.5 GiB: counted as dropped (reader.py
+    does not even try to decompress it: MAX_CHUNK_BYTES), and the scan goes on: the complete
+    chunk after it is recovered."""
+    good = tmp_path / "good.mcap"
+    with BagWriter(good) as bag:
+        bag.add_topic("/traction_power", "std_msgs/msg/Float64")
+        bag.write("/traction_power", float64(1.0), log_time_ns=10)
+    chunks = [r for _, r in records_of(good.read_bytes()) if r[0] == 0x06]
+    lie = (struct.pack("<QQQI", 0, 10, 3 << 29, 0) + struct.pack("<I", 4) + b"zstd"
+           + struct.pack("<Q", 64) + bytes(64))
+    bag = claimed(tmp_path, record(0x06, lie) + b"".join(r for _, r in records_of(good.read_bytes())
+                                                          if r[0] not in (0x01,)))
+    done = recover_limited(tmp_path, bag)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert f"1 messages in {len(chunks)} chunks recovered; dropped 1 chunks" in done.stdout, done.stdout
+    assert [t for _, t, _ in read_messages(str(tmp_path / "out.mcap"))] == [10]
+
+
+def records_of(data: bytes):
+    """(offset, the whole record) of each record of an MCAP file's data, up to the footer."""
+    at = 8
+    while at + 9 <= len(data) - 8:
+        length = struct.unpack("<Q", data[at + 1:at + 9])[0]
+        yield at, data[at:at + 9 + length]
+        at += 9 + length

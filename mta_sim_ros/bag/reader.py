@@ -84,6 +84,11 @@ def summary(path: PathLike) -> dict[str, dict[str, Any]]:
 
 # -- recovery ------------------------------------------------------------------
 
+#: A chunk claiming more uncompressed bytes than this is dropped as damaged (the writers' chunks
+#: are ~1 MiB: BagWriter's DEFAULT_CHUNK_SIZE, rosbag2's 768 KiB), not decompressed.
+MAX_CHUNK_BYTES = 1 << 30
+
+
 class _TruncatedTail(Exception):
     """The source file ends inside a record."""
 
@@ -93,14 +98,20 @@ class _ExactReader:
 
     mcap's StreamReader trusts short reads; with this wrapper a record cut by
     the end of the file raises ``_TruncatedTail`` instead of being parsed from
-    partial data.  ``offset`` is the number of bytes consumed so far.
+    partial data.  ``offset`` is the number of bytes consumed so far.  A read
+    longer than what is left of the file is refused before anything is read:
+    a record claiming more bytes than the file has (a damaged length field, a
+    crafted file) must not make Python allocate what it claims.
     """
 
     def __init__(self, f: BinaryIO):
         self._f = f
         self.offset = 0
+        self.size = os.fstat(f.fileno()).st_size
 
     def read(self, size: int) -> bytes:
+        if size > self.size - self.offset:
+            raise _TruncatedTail()
         data = self._f.read(size)
         if len(data) < size:
             raise _TruncatedTail()
@@ -137,6 +148,9 @@ class _Copier:
         # BagWriter rebuilds the indexes and statistics.
 
     def _copy_chunk(self, chunk: Chunk) -> None:
+        if chunk.uncompressed_size > MAX_CHUNK_BYTES:  # decompressing would allocate what it claims
+            self.chunks_dropped += 1
+            return
         try:
             records = breakup_chunk(chunk, validate_crc=True)
         except Exception:  # bad CRC or undecompressable data: skip this chunk
@@ -235,14 +249,17 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
         f = open(src, "rb")
     except OSError as exc:
         raise BagError(f"cannot open bag file {src}: {exc.strerror or exc}") from exc
-    with f, _replacing(target) as partial:
-        size = os.fstat(f.fileno()).st_size
-        stream = _ExactReader(f)
-        records = StreamReader(stream, emit_chunks=True).records
-        profile = _read_profile(src, records)
-        with BagWriter(partial, chunk_size=chunk_size, profile=profile) as out:
-            copier = _Copier(out)
-            good_end, complete = _copy_records(records, stream, copier)
+    try:
+        with f, _replacing(target) as partial:
+            stream = _ExactReader(f)
+            size = stream.size
+            records = StreamReader(stream, emit_chunks=True).records
+            profile = _read_profile(src, records)
+            with BagWriter(partial, chunk_size=chunk_size, profile=profile) as out:
+                copier = _Copier(out)
+                good_end, complete = _copy_records(records, stream, copier)
+    except MemoryError:  # one record of the file larger than the memory this process may have
+        raise BagError(f"cannot recover {src}: a record of it does not fit in this process's memory") from None
     return {
         "messages": dict(copier.messages),
         "total_messages": sum(copier.messages.values()),
