@@ -58,6 +58,14 @@ ROSDISTRO_KEYS = {
     'python3-numba', 'mcap-ros2-support', 'python3-sympy', 'python3-pandas', 'python3-psutil', 'python3-pytest',
     'python3-hypothesis',
 }
+#: the ROS packages package.xml may name: released for Jazzy, read from jazzy/distribution.yaml of
+#: ros/rosdistro at 8468e88 (each repository's release packages); rosdep resolves only those
+ROSDISTRO_JAZZY_PACKAGES = {
+    'rclpy', 'rcl_interfaces', 'builtin_interfaces', 'ament_index_python', 'std_msgs', 'geometry_msgs',
+    'sensor_msgs', 'rosgraph_msgs', 'visualization_msgs', 'diagnostic_msgs', 'std_srvs', 'nav_msgs', 'tf2_msgs',
+    'ackermann_msgs', 'simulation_interfaces', 'launch', 'launch_ros', 'ros2launch',
+    'ament_copyright', 'ament_flake8', 'ament_pep257',
+}
 # Third-party modules without a rosdep key: import name -> PyPI distribution
 # that must be listed in requirements.txt (mcap comes with mcap-ros2-support's key).
 _PIP_ONLY = {
@@ -168,6 +176,7 @@ def test_every_plain_rosdep_key_is_rosdistros():
             for e in root.findall(tag)}
     plain = {k for k in keys if k.startswith('python3-') or k in ROSDISTRO_KEYS or k.endswith('-pip')}
     assert plain and plain <= ROSDISTRO_KEYS, plain - ROSDISTRO_KEYS
+    assert keys - plain <= ROSDISTRO_JAZZY_PACKAGES, keys - plain - ROSDISTRO_JAZZY_PACKAGES
 
 
 def test_the_sweep_libraries_are_the_sweep_extra():
