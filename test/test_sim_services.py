@@ -126,6 +126,17 @@ def test_stopped_is_a_reset_and_paused_and_quitting_asks_the_node_to_end(run):
     r = set_state(a, STOPPED)
     assert r.result == Result.RESULT_OK and r.error_message.startswith("stopped: reset to the start")
     assert run.s.paused and run.s.sim.ticks == 0 and len(list(run.bag_dir.glob("*.mcap"))) == 2  # a new run
+    assert call(a.get_state, GetSimulationState).state.state == STOPPED
+    assert set_state(a, STOPPED).result == SetSimulationState.Response.ALREADY_IN_TARGET_STATE
+    assert len(list(run.bag_dir.glob("*.mcap"))) == 2  # no second reset
+    assert set_state(a, PAUSED).result == Result.RESULT_OK and run.s.paused
+    assert call(a.get_state, GetSimulationState).state.state == PAUSED
+    assert set_state(a, STOPPED).result == Result.RESULT_OK  # stopped again: reset again
+    assert call(a.step, StepSimulation, steps=2).result.result == Result.RESULT_OK
+    assert call(a.get_state, GetSimulationState).state.state == PAUSED and run.s.sim.ticks == 2
+    set_state(a, STOPPED)
+    assert set_state(a, PLAYING).result == Result.RESULT_OK and not run.s.paused
+    assert call(a.get_state, GetSimulationState).state.state == PLAYING
     assert set_state(a, QUITTING).result == Result.RESULT_OK and quit_.called == 1
 
 

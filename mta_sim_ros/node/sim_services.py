@@ -5,11 +5,12 @@ Offered under the node's name, as Gazebo offers them under ``/gzserver`` (``/mta
 a namespace ``/unit1/mta_sim/...``):
 
     get_simulator_features   GetSimulatorFeatures: what follows, and the tick in custom_info
-    get_simulation_state     GetSimulationState: PLAYING, or PAUSED (a halted run is PAUSED,
+    get_simulation_state     GetSimulationState: PLAYING, PAUSED, STOPPED (a halted run is PAUSED,
                              its reason in result.error_message: only a reset runs it again)
     set_simulation_state     SetSimulationState: PLAYING and PAUSED as the pause service;
-                             STOPPED = reset and paused; QUITTING = the node finishes its bag and
-                             exits 0 once it has answered
+                             STOPPED = reset and paused (read back STOPPED until it is played,
+                             paused or stepped); QUITTING = the node finishes its bag and exits 0
+                             once it has answered
     step_simulation          StepSimulation: ``steps`` ticks (1/publish_rate each) while paused, each
                              published and recorded as a tick of the running node, at once (no
                              wall clock; in lockstep no answer awaited); at most
@@ -64,6 +65,7 @@ class Answers:
         self.session, self.quit = session, quit_
         self.R, self.S, self.F = Result, SimulationState, SimulatorFeatures
         self.Set, self.Reset = SetSimulationState, ResetSimulation
+        self.stopped = False  # STOPPED: reset and paused, nothing run since (a pause or a step ends it)
 
     def _result(self, response, code: int, message: str = ""):
         response.result.result = code
@@ -72,9 +74,9 @@ class Answers:
 
     def features(self, request, response):
         F = self.F
-        response.features.features = [F.SIMULATION_RESET, F.SIMULATION_RESET_STATE, F.SIMULATION_STATE_GETTING, F.SIMULATION_STATE_SETTING,
-                                      F.SIMULATION_STATE_PAUSE, F.STEP_SIMULATION_SINGLE,
-                                      F.STEP_SIMULATION_MULTIPLE]
+        response.features.features = [F.SIMULATION_RESET, F.SIMULATION_RESET_STATE, F.SIMULATION_STATE_GETTING,
+                                      F.SIMULATION_STATE_SETTING, F.SIMULATION_STATE_PAUSE,
+                                      F.STEP_SIMULATION_SINGLE, F.STEP_SIMULATION_MULTIPLE]
         response.features.spawn_formats = []
         response.features.custom_info = (
             f"mta_sim_ros {__version__}: one tractor train; a step is one tick of {self.session.sim.tick:g} s "
@@ -83,8 +85,10 @@ class Answers:
         return response
 
     def get_state(self, request, response):
-        s = self.session
-        response.state.state = self.S.STATE_PAUSED if s.paused or s.halted else self.S.STATE_PLAYING
+        s, S = self.session, self.S
+        self.stopped = self.stopped and s.paused and not s.halted  # the pause service may have run it since
+        response.state.state = (S.STATE_STOPPED if self.stopped else S.STATE_PAUSED if s.paused or s.halted
+                                else S.STATE_PLAYING)
         return self._result(response, self.R.RESULT_OK,
                             f"halted ({s.halted}): reset to run again" if s.halted else "")
 
@@ -93,15 +97,22 @@ class Answers:
         if target == S.STATE_QUITTING:
             self.quit()
             return self._result(response, self.R.RESULT_OK, "quitting: the bag is finished, then the node exits")
+        self.stopped = self.stopped and s.paused and not s.halted
         if target == S.STATE_STOPPED:
+            if self.stopped:
+                return self._result(response, self.Set.ALREADY_IN_TARGET_STATE, "already stopped")
             message = s.reset()
             s.pause(True)
+            self.stopped = True
             return self._result(response, self.R.RESULT_OK, f"stopped: {message}; paused")
         if target not in (S.STATE_PLAYING, S.STATE_PAUSED):
             return self._result(response, self.R.RESULT_FEATURE_UNSUPPORTED,
                                 f"state {target}: this simulator can be set PLAYING (1), PAUSED (2), STOPPED (0) "
                                 "or QUITTING (3); it has one world, always loaded")
         pausing = target == S.STATE_PAUSED
+        if self.stopped:  # stopped -> paused (at the start) or playing
+            self.stopped = False
+            return self._result(response, self.R.RESULT_OK, "paused at the start" if pausing else s.pause(False))
         if target == S.STATE_PLAYING and s.halted:
             return self._result(response, self.Set.STATE_TRANSITION_ERROR,
                                 f"halted ({s.halted}): reset it (reset_simulation) to run again")
@@ -112,6 +123,7 @@ class Answers:
 
     def step(self, request, response):
         done, why = self.session.step(int(request.steps))
+        self.stopped = self.stopped and done == 0
         if why:  # none ran (not paused, halted, too many), or a halt on the way
             return self._result(response, self.R.RESULT_OPERATION_FAILED, why)
         return self._result(response, self.R.RESULT_OK, f"{done} steps, t = {self.session.now:.6f} s")
