@@ -1,0 +1,191 @@
+"""The ground under the train: a plane or a height grid, the surface's height and slope at any
+point, a cart's roll and pitch on it, and its static rollover margin (issue 23, its first part).
+
+Not yet in the equations of motion nor in the scene files: a scene naming ``terrain`` is still
+refused as an unknown field, so no run pretends to be on a slope. What is here is what the
+model's slope terms and the 3D poses will read.
+
+Surface: ``z(x, y)`` in the frame of the train's plane (x, y the model's coordinates, z up), its
+gradient ``G = (dz/dx, dz/dy)``. A plane has a constant G. A grid is a regular array of heights
+(rows along y, columns along x, ``origin`` the (x, y) of heights[0, 0], ``spacing`` m between
+nodes), interpolated by a bicubic spline through every node (scipy's RectBivariateSpline, s = 0):
+heights, slopes and curvatures are continuous, as the slope terms of the equations need. A point
+off the grid is :class:`OffTerrain`: nothing is extrapolated.
+
+Orientation of a cart with heading ``th`` on a surface of gradient G (REP-103: x forward, y left,
+z up; roll about x, positive left side up; pitch about y, positive nose down), with e = (cos th,
+sin th), n = (-sin th, cos th), w = sqrt(1 + |G|^2):
+
+    pitch = -atan(G . e)          roll = asin((G . n) / w)
+
+Static rollover margin of a cart of track ``t`` and centre-of-mass height ``h`` (over the ground,
+along its normal): the uphill wheels' share of the load over half of it,
+
+    margin = 1 - 2 h |tan(roll)| / (t cos(pitch))
+
+1 on the level, 0 where the uphill wheels lift (on a pure side slope b: tan b = t / (2 h)),
+negative past it.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..validate import fail, show
+
+#: the steepest slope a terrain may have anywhere (at a node of a grid), degrees: beyond it no
+#: wheeled field machine stands, and the surface is more likely a unit error (cm read as m)
+MAX_SLOPE_DEG = 60.0
+#: the fewest nodes along each axis of a grid (a bicubic spline needs 4)
+MIN_NODES = 4
+#: the most nodes of a grid (16 M: 128 MB of float64), and the largest grid file read, bytes
+MAX_NODES = 4096 * 4096
+MAX_FILE_BYTES = 256 * 2**20
+
+
+class OffTerrain(ValueError):
+    """A point the terrain does not cover."""
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Height (m) and gradient (dz/dx, dz/dy) at a point."""
+
+    z: float
+    dzdx: float
+    dzdy: float
+
+
+@dataclass(frozen=True)
+class Plane:
+    """z = z0 + grade x + cross_slope y: grade and cross_slope are rises per metre (tan of the
+    angles), along the model's x and y axes."""
+
+    grade: float
+    cross_slope: float
+    z0: float = 0.0
+
+    def at(self, x: float, y: float) -> Surface:
+        return Surface(self.z0 + self.grade * x + self.cross_slope * y, self.grade, self.cross_slope)
+
+
+class HeightGrid:
+    """A regular grid of heights (rows along y), interpolated by a bicubic spline through every
+    node. Built from checked arrays only: :func:`grid_from` checks them."""
+
+    def __init__(self, heights: np.ndarray, origin: tuple[float, float], spacing: float):
+        from scipy.interpolate import RectBivariateSpline
+
+        self.heights = heights
+        self.origin, self.spacing = origin, spacing
+        ny, nx = heights.shape
+        self.xs = origin[0] + spacing * np.arange(nx)
+        self.ys = origin[1] + spacing * np.arange(ny)
+        self._spline = RectBivariateSpline(self.ys, self.xs, heights, kx=3, ky=3, s=0)
+
+    def covers(self, x: float, y: float) -> bool:
+        return self.xs[0] <= x <= self.xs[-1] and self.ys[0] <= y <= self.ys[-1]
+
+    def at(self, x: float, y: float) -> Surface:
+        if not self.covers(x, y):
+            raise OffTerrain(f"({x:.3f}, {y:.3f}) m is off the terrain grid x in [{self.xs[0]:g}, {self.xs[-1]:g}], "
+                             f"y in [{self.ys[0]:g}, {self.ys[-1]:g}] m")
+        z = float(self._spline(y, x)[0, 0])
+        dzdy = float(self._spline(y, x, dx=1)[0, 0])
+        dzdx = float(self._spline(y, x, dy=1)[0, 0])
+        return Surface(z, dzdx, dzdy)
+
+
+def orientation(heading: float, surface: Surface) -> tuple[float, float]:
+    """(roll, pitch), rad, of a cart whose horizontal heading is ``heading`` on ``surface``
+    (the module docstring)."""
+    c, s = math.cos(heading), math.sin(heading)
+    along = surface.dzdx * c + surface.dzdy * s
+    across = -surface.dzdx * s + surface.dzdy * c
+    w = math.sqrt(1.0 + surface.dzdx ** 2 + surface.dzdy ** 2)
+    return math.asin(across / w), -math.atan(along)
+
+
+def rollover_margin(track: float, com_height: float, roll: float, pitch: float = 0.0) -> float:
+    """The static rollover margin (the module docstring): 1 level, 0 at the tipping slope."""
+    return 1.0 - 2.0 * com_height * abs(math.tan(roll)) / (track * math.cos(pitch))
+
+
+def tipping_side_slope(track: float, com_height: float) -> float:
+    """The side slope, rad, where the margin reaches 0: atan(t / (2 h))."""
+    return math.atan(track / (2.0 * com_height))
+
+
+# -- reading and checking ---------------------------------------------------------------------------
+
+def plane_from(grade_percent: float, cross_slope_percent: float, where: str = "terrain", source: str = "") -> Plane:
+    """A plane from its grades in percent (rise per 100 m), the steepest within MAX_SLOPE_DEG."""
+    for name, value in (("grade_percent", grade_percent), ("cross_slope_percent", cross_slope_percent)):
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+            fail(name, show(value), "a finite number (percent)", where, source)
+    plane = Plane(grade_percent / 100.0, cross_slope_percent / 100.0)
+    steepest = math.degrees(math.atan(math.hypot(plane.grade, plane.cross_slope)))
+    if steepest > MAX_SLOPE_DEG:
+        fail("grade_percent", f"{grade_percent:g} with cross_slope_percent {cross_slope_percent:g}",
+             f"a slope of at most {MAX_SLOPE_DEG:g} deg (this is {steepest:.1f} deg)", where, source)
+    return plane
+
+
+def grid_from(heights: object, origin: object, spacing: object, where: str = "terrain", source: str = "") -> HeightGrid:
+    """A HeightGrid from a 2-D array of heights (m), the (x, y) of its first node and the node
+    spacing (m), checked: finite numbers, at least MIN_NODES nodes along each axis, at most
+    MAX_NODES in all, no slope between neighbouring nodes over MAX_SLOPE_DEG."""
+    if not (isinstance(spacing, (int, float)) and not isinstance(spacing, bool) and math.isfinite(spacing)
+            and spacing > 0):
+        fail("spacing", show(spacing), "a finite number > 0 (m between nodes)", where, source)
+    if not (isinstance(origin, (list, tuple)) and len(origin) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in origin)):
+        fail("origin", show(origin), "[x, y] of the first node, two finite numbers (m)", where, source)
+    h = np.asarray(heights)
+    if h.ndim != 2 or h.dtype.kind not in "iuf":
+        fail("heights", f"an array of shape {h.shape} ({h.dtype})", "a 2-D array of numbers (rows along y)", where,
+             source)
+    if min(h.shape) < MIN_NODES:
+        fail("heights", f"{h.shape[0]} x {h.shape[1]} nodes", f"at least {MIN_NODES} x {MIN_NODES} (a bicubic "
+             "surface)", where, source)
+    if h.size > MAX_NODES:
+        fail("heights", f"{h.shape[0]} x {h.shape[1]} nodes", f"at most {MAX_NODES} nodes", where, source)
+    h = h.astype(np.float64)
+    bad = np.argwhere(~np.isfinite(h))
+    if bad.size:
+        row, col = bad[0]
+        fail("heights", f"{h[row, col]} at row {row}, column {col}", "finite numbers (m)", where, source)
+    steepest = max(float(np.max(np.abs(np.diff(h, axis=a)), initial=0.0)) for a in (0, 1)) / float(spacing)
+    if math.degrees(math.atan(steepest)) > MAX_SLOPE_DEG:
+        fail("heights", f"a rise of {steepest * spacing:g} m over {spacing:g} m between neighbouring nodes",
+             f"a slope of at most {MAX_SLOPE_DEG:g} deg", where, source)
+    return HeightGrid(h, (float(origin[0]), float(origin[1])), float(spacing))
+
+
+def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = "") -> np.ndarray:
+    """The heights of a grid file: .npy (numpy's format, no pickles) or .csv (one row of the grid
+    a line, comma-separated, every row as long), at most MAX_FILE_BYTES."""
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+    except OSError as err:
+        fail("file", show(str(path)), f"a readable grid file ({err.strerror or err})", where, source)
+    if not p.is_file():
+        fail("file", show(str(path)), "a file (.npy or .csv)", where, source)
+    if size > MAX_FILE_BYTES:
+        fail("file", f"{show(str(path))} of {size} bytes", f"at most {MAX_FILE_BYTES} bytes", where, source)
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".npy":
+            return np.load(p, allow_pickle=False)
+        if suffix == ".csv":
+            return np.loadtxt(p, delimiter=",", ndmin=2)
+    except (ValueError, OSError, EOFError) as err:
+        fail("file", show(str(path)), f"a grid of numbers ({str(err).splitlines()[0] if str(err) else err!r})",
+             where, source)
+    fail("file", show(str(path)), "a .npy or .csv grid of heights", where, source)
+
