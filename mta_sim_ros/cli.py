@@ -71,8 +71,9 @@ def recover_main(args: argparse.Namespace) -> int:
         print(f"mta recover: {err}", file=sys.stderr)
         return 1
     print(f"{out}: {report['total_messages']} messages in {report['chunks']} chunks recovered; "
-          f"dropped {report['chunks_dropped']} chunks, {report['messages_dropped']} messages, "
-          f"{report['bytes_dropped']} bytes")
+          f"dropped {report['chunks_dropped']} chunks, {report['messages_dropped']} messages"
+          + (f" ({report['messages_out_of_order']} whose log time went back)" if report['messages_out_of_order'] else "")
+          + f", {report['bytes_dropped']} bytes")
     return 0
 
 

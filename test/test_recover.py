@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import os
 import resource
+import stat
 import struct
 import subprocess
 import sys
@@ -201,3 +202,41 @@ def records_of(data: bytes):
         length = struct.unpack("<Q", data[at + 1:at + 9])[0]
         yield at, data[at:at + 9 + length]
         at += 9 + length
+
+
+def chunk_record(records: bytes, compression: str, claim: int, start: int = 0, end: int = 0) -> bytes:
+    """A chunk record (opcode 0x06) holding ``records`` compressed as given, claiming ``claim``
+    bytes uncompressed, CRC 0 (not computed: MCAP's readers then take the data as it is)."""
+    return record(0x06, struct.pack("<QQQI", start, end, claim, 0) + struct.pack("<I", len(compression))
+                  + compression.encode() + struct.pack("<Q", len(records)) + records)
+
+
+def test_decompression_bombs_are_dropped_unparsed(tmp_path):
+    """Chunks whose data is 64 MiB of zeros: zstd claiming all of it (a ratio of ~20 000: over
+    MAX_CHUNK_RATIO) and lz4 claiming 100 bytes (mcap's reader ignores lz4's claim). mcap alone
+    would unpack both and take them for chunks of unknown records; each is dropped undecompressed
+    or cut at its claim, and the good chunk after them recovered."""
+    import lz4.frame
+    import zstandard
+
+    zeros = bytes(64 << 20)
+    bombs = (chunk_record(zstandard.ZstdCompressor().compress(zeros), "zstd", len(zeros))
+             + chunk_record(lz4.frame.compress(zeros), "lz4", 100))
+    good = tmp_path / "good.mcap"
+    with BagWriter(good) as bag:
+        bag.add_topic("/traction_power", "std_msgs/msg/Float64")
+        bag.write("/traction_power", float64(1.0), log_time_ns=10)
+    rest = b"".join(r for _, r in records_of(good.read_bytes()) if r[0] != 0x01)
+    bag = claimed(tmp_path, bombs + rest)
+    done = recover_limited(tmp_path, bag)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert "1 messages in 1 chunks recovered; dropped 2 chunks" in done.stdout, done.stdout
+
+
+def test_a_fifo_or_device_as_output_is_refused_and_left_as_it_is(tmp_path):
+    bag = crashed_bag(tmp_path)
+    os.mkfifo(tmp_path / "fifo")
+    code, out, err = run_recover(tmp_path, bag.name, "-o", "fifo")
+    assert code == 2 and err == "mta recover: fifo is not a regular file (a device, a FIFO or a socket): name a " \
+                                "file to write\n", err
+    assert stat.S_ISFIFO(os.stat(tmp_path / "fifo").st_mode)

@@ -12,7 +12,7 @@ import struct
 import tempfile
 from collections import Counter
 from contextlib import contextmanager, suppress
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, BinaryIO, Iterable, Iterator
 
 from mcap.exceptions import McapError
@@ -87,6 +87,40 @@ def summary(path: PathLike) -> dict[str, dict[str, Any]]:
 #: A chunk claiming more uncompressed bytes than this is dropped as damaged (the writers' chunks
 #: are ~1 MiB: BagWriter's DEFAULT_CHUNK_SIZE, rosbag2's 768 KiB), not decompressed.
 MAX_CHUNK_BYTES = 1 << 30
+#: ... and one claiming more than this many times its compressed size (the node's bags: ~6; a
+#: chunk of zeros, a decompression bomb: ~20 000): parsing a gigabyte of tiny records out of a
+#: few kilobytes would take minutes of CPU for nothing.
+MAX_CHUNK_RATIO = 1000
+
+
+def _chunk_data(chunk: Chunk) -> bytes | None:
+    """The chunk's records decompressed, never more than it claims (mcap's own lz4 path ignores
+    the claim); None when they are not exactly what it claims, or it claims too much
+    (MAX_CHUNK_BYTES, MAX_CHUNK_RATIO), or its compression is unknown."""
+    claim = chunk.uncompressed_size
+    if claim > MAX_CHUNK_BYTES or claim > MAX_CHUNK_RATIO * max(len(chunk.data), 1):
+        return None
+    if chunk.compression == "":
+        data = bytes(chunk.data)
+    elif chunk.compression == "zstd":
+        import zstandard
+
+        parts, total = [], 0
+        with zstandard.ZstdDecompressor().stream_reader(bytes(chunk.data)) as reader:
+            while total <= claim:
+                part = reader.read(claim + 1 - total)
+                if not part:
+                    break
+                parts.append(part)
+                total += len(part)
+        data = b"".join(parts)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+
+        data = lz4.frame.LZ4FrameDecompressor().decompress(bytes(chunk.data), max_length=claim + 1)
+    else:
+        return None
+    return data if len(data) == claim else None
 
 
 class _TruncatedTail(Exception):
@@ -128,6 +162,7 @@ class _Copier:
     topics: dict[int, str] = field(default_factory=dict)
     messages: Counter = field(default_factory=Counter)
     messages_dropped: int = 0
+    messages_out_of_order: int = 0  # log time before one already copied: a bag's log times never go back
     last_log_time: int | None = None  # ns, the latest log time copied
     chunks: int = 0
     chunks_dropped: int = 0
@@ -148,12 +183,13 @@ class _Copier:
         # BagWriter rebuilds the indexes and statistics.
 
     def _copy_chunk(self, chunk: Chunk) -> None:
-        if chunk.uncompressed_size > MAX_CHUNK_BYTES:  # decompressing would allocate what it claims
-            self.chunks_dropped += 1
-            return
         try:
-            records = breakup_chunk(chunk, validate_crc=True)
+            data = _chunk_data(chunk)
+            records = None if data is None else breakup_chunk(replace(chunk, compression="", data=data),
+                                                              validate_crc=True)
         except Exception:  # bad CRC or undecompressable data: skip this chunk
+            records = None
+        if records is None:
             self.chunks_dropped += 1
             return
         self.chunks += 1
@@ -174,6 +210,9 @@ class _Copier:
         if topic is None:
             self.messages_dropped += 1
             return
+        if self.last_log_time is not None and message.log_time < self.last_log_time:
+            self.messages_out_of_order += 1  # MCAP allows it, BagWriter's bags do not: dropped, counted
+            return
         self.out.write_raw(topic, message.data, message.log_time, message.publish_time,
                            message.sequence)
         self.messages[topic] += 1
@@ -189,7 +228,8 @@ def output_target(src: PathLike, dst: PathLike) -> str:
 
     Refused (:class:`PathRefused`, one line): ``src`` missing or not a regular file; ``dst``
     that is ``src`` however the path reaches it (a symlink, a hard link, a path through ``..``,
-    the same path: same device and inode); ``dst`` a directory; ``dst``'s folder missing. The
+    the same path: same device and inode); ``dst`` a directory, a device, a FIFO or a socket;
+    ``dst``'s folder missing. The
     comparison is by device and inode, not by name, because every one of those names is the
     one copy of a crashed bag.
     """
@@ -214,6 +254,8 @@ def output_target(src: PathLike, dst: PathLike) -> str:
         raise PathRefused(f"{dst} is {src} itself (the same file): refusing to write over the only copy of the bag")
     if stat.S_ISDIR(dst_stat.st_mode):
         raise PathRefused(f"{dst} is a directory: name the file to write")
+    if not stat.S_ISREG(dst_stat.st_mode):  # renaming over it would replace a device or a FIFO
+        raise PathRefused(f"{dst} is not a regular file (a device, a FIFO or a socket): name a file to write")
     return target
 
 
@@ -225,8 +267,10 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
     The profile, schemas, channels (with their metadata), metadata records and
     every message of every complete chunk (and every complete loose message)
     are written with :class:`BagWriter`, in the original order.
-    A chunk failing its CRC or decompression is skipped.  Attachments are not
-    copied.
+    A chunk failing its CRC or decompression, or claiming more than MAX_CHUNK_BYTES or
+    MAX_CHUNK_RATIO times its size, is skipped; a message whose log time is before one already
+    copied is dropped (counted: MCAP allows it, this package's bags do not).  Attachments are
+    not copied.
 
     ``src`` is never written: :func:`output_target` refuses a ``dst`` that reaches it, and the
     new file is written under a temporary name in ``dst``'s folder and renamed over ``dst`` only
@@ -234,7 +278,8 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
 
     Returns:
         ``{"messages": {topic: n}, "total_messages": n, "chunks": n_chunks_copied,
-        "chunks_dropped": n, "messages_dropped": n_without_channel,
+        "chunks_dropped": n, "messages_dropped": n_without_channel_or_out_of_order,
+        "messages_out_of_order": n_whose_log_time_went_back,
         "bytes_dropped": n_unparsed_tail_bytes, "complete": src_had_a_data_end_record,
         "last_log_time_ns": latest_log_time_recovered_or_None}``
 
@@ -255,9 +300,12 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
             size = stream.size
             records = StreamReader(stream, emit_chunks=True).records
             profile = _read_profile(src, records)
-            with BagWriter(partial, chunk_size=chunk_size, profile=profile) as out:
-                copier = _Copier(out)
-                good_end, complete = _copy_records(records, stream, copier)
+            try:
+                with BagWriter(partial, chunk_size=chunk_size, profile=profile) as out:
+                    copier = _Copier(out)
+                    good_end, complete = _copy_records(records, stream, copier)
+            except BagError as err:  # the writer names its file: the temporary one, which is gone
+                raise BagError(f"cannot recover {src}: {str(err).replace(partial, target)}") from None
     except MemoryError:  # one record of the file larger than the memory this process may have
         raise BagError(f"cannot recover {src}: a record of it does not fit in this process's memory") from None
     return {
@@ -265,7 +313,8 @@ def recover(src: PathLike, dst: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE) 
         "total_messages": sum(copier.messages.values()),
         "chunks": copier.chunks,
         "chunks_dropped": copier.chunks_dropped,
-        "messages_dropped": copier.messages_dropped,
+        "messages_dropped": copier.messages_dropped + copier.messages_out_of_order,
+        "messages_out_of_order": copier.messages_out_of_order,
         "bytes_dropped": 0 if complete else size - good_end,
         "complete": complete,
         "last_log_time_ns": copier.last_log_time,
