@@ -129,3 +129,20 @@ def test_rviz_gets_a_copy_of_its_config_with_the_namespaces_frames(namespace):
         assert copy == original  # nothing else changed
     finally:
         os.unlink(path)
+
+
+@pytest.mark.parametrize("content, expected", [
+    (None, "cannot be read as YAML (No such file or directory)"),
+    ("a: [unclosed", "cannot be read as YAML"),
+    ("", "not an RViz config"),
+    ("- a\n- b\n", "not an RViz config"),
+    ("Visualization Manager:\n  Global Options: {}\n", "not an RViz config"),
+])
+def test_a_config_that_is_no_rviz_config_is_one_line_naming_it(tmp_path, content, expected):
+    path = tmp_path / "view.rviz"
+    if content is not None:
+        path.write_text(content)
+    with pytest.raises(RuntimeError) as err:
+        rviz_config(str(path), "odom", "base_link")
+    message = str(err.value)
+    assert message.startswith(f"rviz.launch.py: config:={path}: ") and expected in message and "\n" not in message

@@ -162,6 +162,8 @@ def test_a_halted_run_is_paused_with_its_reason_and_plays_only_after_a_reset(run
     (ResetSimulation.Request.SCOPE_TIME, Result.RESULT_FEATURE_UNSUPPORTED, False),
     (ResetSimulation.Request.SCOPE_TIME | ResetSimulation.Request.SCOPE_STATE, Result.RESULT_FEATURE_UNSUPPORTED, False),
     (8, Result.RESULT_FEATURE_UNSUPPORTED, False),
+    (8 | ResetSimulation.Request.SCOPE_STATE, Result.RESULT_FEATURE_UNSUPPORTED, False),
+    (254, Result.RESULT_FEATURE_UNSUPPORTED, False),
 ])
 def test_reset_scopes(run, scope, code, resets):
     """Simulated time never goes back (the node's reset): scopes with TIME but ALL are refused."""
@@ -209,3 +211,51 @@ def test_the_services_over_dds_step_a_node_in_a_namespace_and_quit_it(tmp_path, 
     [bag] = bags_in(tmp_path / "bags")  # a finished bag (rosbags reads its summary), every tick in it
     recorded = [t for t, _ in read_bag(bag)["/unit1/hitch_poses"]]
     assert recorded == [20_000_000 * (i + 1) for i in range(len(recorded))] and recorded[-1] == end
+
+
+def test_stopped_ends_when_anything_runs_the_train_and_a_stop_signal_ends_a_step(run):
+    a = answers(run)
+    set_state(a, STOPPED)
+    run.s.pause(False)  # the pause service (std_srvs/SetBool), not these services
+    run.ticks(3)
+    run.s.pause(True)
+    assert call(a.get_state, GetSimulationState).state.state == PAUSED
+    assert set_state(a, STOPPED).result == Result.RESULT_OK and run.s.sim.ticks == 0  # a real reset again
+    asked = []
+    done, why = run.s.step(1000, interrupted=lambda: asked.append(1) or len(asked) > 10)
+    assert (done, why) == (10, "interrupted after 10 of 1000 steps: the node is stopping")
+
+
+def test_a_step_first_hands_the_session_the_commands_waiting(run):
+    """The node's hook (sim_node: _take_commands) runs before the step: a command published just
+    before the call steers its first tick."""
+    order = []
+    a = Answers(run.s, Quit(), Result, SimulationState, SimulatorFeatures, SetSimulationState.Response,
+                ResetSimulation.Request, before_step=lambda: order.append(("taken", run.s.sim.ticks)))
+    run.s.pause(True)
+    call(a.step, StepSimulation, steps=2)
+    assert order == [("taken", 0)] and run.s.sim.ticks == 2
+
+
+@pytest.mark.dds
+def test_sigterm_ends_a_long_step_at_once_with_a_complete_bag(tmp_path, probe: Probe):
+    params = write_params(tmp_path / "params.yaml", scene_file=str(SCENE), bag_dir=str(tmp_path / "bags"),
+                          publish_rate=50.0, real_time_factor=1.0, watchdog_timeout=0.0, record=True)
+    node = start_node(params, tmp_path / "node.log")
+    try:
+        poses = probe.subscribe("/hitch_poses", PoseArray, qos=100)
+        assert probe.spin_until(lambda: len(poses) >= 3 or node.poll() is not None, 30.0), "no output"
+        paused = probe.call(SetSimulationState, "/mta_sim/set_simulation_state",
+                            SetSimulationState.Request(state=SimulationState(state=PAUSED)))
+        assert paused.result.result == Result.RESULT_OK
+        client = probe.node.create_client(StepSimulation, "/mta_sim/step_simulation")
+        assert client.wait_for_service(timeout_sec=10)
+        client.call_async(StepSimulation.Request(steps=MAX_STEPS))  # ~20-40 s of work
+        before = len(poses)
+        assert probe.spin_until(lambda: len(poses) > before + 200, 30.0), "the steps did not start"
+        assert stop(node, timeout=10.0) == 0  # the step stops at the signal, the bag is finished
+    finally:
+        stop(node)
+    [bag] = bags_in(tmp_path / "bags")
+    recorded = len(read_bag(bag)["/hitch_poses"])
+    assert before + 200 < recorded < MAX_STEPS, recorded

@@ -69,11 +69,18 @@ def rviz_config(config: str, fixed_frame: str, target_frame: str) -> str:
 
     import yaml
 
-    with open(config, encoding="utf-8") as f:
-        data = yaml.safe_load(f)
-    manager = data["Visualization Manager"]
-    manager["Global Options"]["Fixed Frame"] = fixed_frame
-    manager["Views"]["Current"]["Target Frame"] = target_frame
+    try:
+        with open(config, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+        manager = data["Visualization Manager"]
+        manager["Global Options"]["Fixed Frame"] = fixed_frame
+        manager["Views"]["Current"]["Target Frame"] = target_frame
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        raise RuntimeError(f"rviz.launch.py: config:={config}: cannot be read as YAML "
+                           f"({' '.join(str(getattr(err, 'strerror', None) or err).split())})") from None
+    except (KeyError, TypeError):
+        raise RuntimeError(f"rviz.launch.py: config:={config}: not an RViz config (it must have "
+                           "'Visualization Manager' with 'Global Options' and 'Views: Current')") from None
     with tempfile.NamedTemporaryFile("w", prefix="mta_rviz_", suffix=".rviz", delete=False, encoding="utf-8") as out:
         yaml.safe_dump(data, out, sort_keys=False)
     return out.name

@@ -299,11 +299,13 @@ class RunSession:
             return False
         return self._advance()
 
-    def step(self, steps: int) -> tuple[int, str]:
+    def step(self, steps: int, interrupted: Callable[[], bool] = lambda: False) -> tuple[int, str]:
         """Run ``steps`` ticks now, the simulation paused before and after (simulation_interfaces'
         StepSimulation): each published and recorded as a tick of the running node, without
         waiting for the wall clock or (lockstep) an answer. Returns the ticks run and why they are
-        fewer than asked ('' when all ran): not paused, halted, or more than MAX_STEPS a call."""
+        fewer than asked ('' when all ran): not paused, halted, more than MAX_STEPS a call, or
+        ``interrupted`` (asked before each tick: the node's SIGINT/SIGTERM, which must not wait
+        for a long call to end)."""
         if self.halted:
             return 0, f"the simulation halted ({self.halted}): reset it to run again"
         if not self.paused:
@@ -311,9 +313,11 @@ class RunSession:
         if not 0 <= steps <= MAX_STEPS:
             return 0, f"steps {steps}: at most {MAX_STEPS} a call (the node answers nothing else while it steps)"
         done = 0
-        while done < steps and not self.halted:
+        while done < steps and not self.halted and not interrupted():
             done += self._advance()
         self.pace.restart(self.now)  # lockstep: what it stepped to needs no answer; the wall clock from now
+        if done < steps and not self.halted:
+            return done, f"interrupted after {done} of {steps} steps: the node is stopping"
         if self.halted:
             return done, f"the simulation halted after {done} of {steps} steps: {self.halted}"
         return done, ""

@@ -105,8 +105,9 @@ def descriptor(p: Param) -> ParameterDescriptor:
 
 
 class SimNode(Node):
-    def __init__(self, profile=None, **kwargs):
-        """``profile``: a timing.TickProfile told where each tick's time goes (benchmarks)."""
+    def __init__(self, profile=None, stop: list | None = None, **kwargs):
+        """``profile``: a timing.TickProfile told where each tick's time goes (benchmarks);
+        ``stop``: the signals main() has received (a long StepSimulation ends at the first)."""
         try:
             with warnings.catch_warnings():  # rclpy's own warning about the node it could not make
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -148,7 +149,9 @@ class SimNode(Node):
         self.create_service(Trigger, "reset", self._on_reset)
         self.create_service(SetBool, "pause", self._on_pause)
         self.quitting = False  # SetSimulationState QUITTING: main() ends the spin loop
-        absent = offer(self, self.session, self._quit)
+        stop = [] if stop is None else stop
+        absent = offer(self, self.session, self._quit, before_step=self._take_commands,
+                       interrupted=lambda: bool(stop))
         if absent:
             self.get_logger().info(f"not offering the simulation_interfaces services: {absent}")
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -269,7 +272,7 @@ def main(argv: list[str] | None = None, profile=None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: stop.append(signum))
     try:
-        node = SimNode(profile=profile)
+        node = SimNode(profile=profile, stop=stop)
     except ConfigError as err:
         print(f"sim_node: {err}", file=sys.stderr)
         rclpy.try_shutdown()

@@ -34,9 +34,13 @@ from .. import __version__
 from .run_session import MAX_STEPS, RunSession
 
 
-def offer(node, session: RunSession, quit_: Callable[[], None]) -> str:
+def offer(node, session: RunSession, quit_: Callable[[], None], before_step: Callable[[], None] = lambda: None,
+          interrupted: Callable[[], bool] = lambda: False) -> str:
     """Create the services on ``node``; returns '' or why they are not offered. ``quit_`` is
-    called for SetSimulationState QUITTING, after the answer is sent."""
+    called for SetSimulationState QUITTING (the node ends once the answer is sent),
+    ``before_step`` before each StepSimulation (the node hands the session the commands waiting,
+    so that a command sent before the call steers its first step), ``interrupted`` before each
+    step's tick (the node's stop signal)."""
     try:
         from simulation_interfaces.msg import Result, SimulationState, SimulatorFeatures
         from simulation_interfaces.srv import (GetSimulationState, GetSimulatorFeatures, ResetSimulation,
@@ -44,7 +48,7 @@ def offer(node, session: RunSession, quit_: Callable[[], None]) -> str:
     except ImportError as err:
         return f"simulation_interfaces is not installed ({err})"
     answers = Answers(session, quit_, Result, SimulationState, SimulatorFeatures, SetSimulationState.Response,
-                      ResetSimulation.Request)
+                      ResetSimulation.Request, before_step, interrupted)
     node.sim_services = [
         node.create_service(GetSimulatorFeatures, "~/get_simulator_features", answers.features),
         node.create_service(GetSimulationState, "~/get_simulation_state", answers.get_state),
@@ -61,11 +65,20 @@ class Answers:
     so that this module imports without simulation_interfaces."""
 
     def __init__(self, session: RunSession, quit_, Result, SimulationState, SimulatorFeatures,
-                 SetSimulationState, ResetSimulation):
+                 SetSimulationState, ResetSimulation, before_step=lambda: None, interrupted=lambda: False):
         self.session, self.quit = session, quit_
+        self.before_step, self.interrupted = before_step, interrupted
         self.R, self.S, self.F = Result, SimulationState, SimulatorFeatures
         self.Set, self.Reset = SetSimulationState, ResetSimulation
-        self.stopped = False  # STOPPED: reset and paused, nothing run since (a pause or a step ends it)
+        self._stopped = False  # STOPPED asked; it holds while paused at the start (see stopped)
+
+    @property
+    def stopped(self) -> bool:
+        """STOPPED was asked and nothing has run since: paused, not halted, no tick since the reset
+        it made (whatever ran it: this service, the pause service, a step)."""
+        s = self.session
+        self._stopped = self._stopped and s.paused and not s.halted and s.sim.ticks == 0
+        return self._stopped
 
     def _result(self, response, code: int, message: str = ""):
         response.result.result = code
@@ -86,7 +99,6 @@ class Answers:
 
     def get_state(self, request, response):
         s, S = self.session, self.S
-        self.stopped = self.stopped and s.paused and not s.halted  # the pause service may have run it since
         response.state.state = (S.STATE_STOPPED if self.stopped else S.STATE_PAUSED if s.paused or s.halted
                                 else S.STATE_PLAYING)
         return self._result(response, self.R.RESULT_OK,
@@ -97,13 +109,12 @@ class Answers:
         if target == S.STATE_QUITTING:
             self.quit()
             return self._result(response, self.R.RESULT_OK, "quitting: the bag is finished, then the node exits")
-        self.stopped = self.stopped and s.paused and not s.halted
         if target == S.STATE_STOPPED:
             if self.stopped:
                 return self._result(response, self.Set.ALREADY_IN_TARGET_STATE, "already stopped")
             message = s.reset()
             s.pause(True)
-            self.stopped = True
+            self._stopped = True
             return self._result(response, self.R.RESULT_OK, f"stopped: {message}; paused")
         if target not in (S.STATE_PLAYING, S.STATE_PAUSED):
             return self._result(response, self.R.RESULT_FEATURE_UNSUPPORTED,
@@ -111,7 +122,7 @@ class Answers:
                                 "or QUITTING (3); it has one world, always loaded")
         pausing = target == S.STATE_PAUSED
         if self.stopped:  # stopped -> paused (at the start) or playing
-            self.stopped = False
+            self._stopped = False
             return self._result(response, self.R.RESULT_OK, "paused at the start" if pausing else s.pause(False))
         if target == S.STATE_PLAYING and s.halted:
             return self._result(response, self.Set.STATE_TRANSITION_ERROR,
@@ -122,21 +133,24 @@ class Answers:
         return self._result(response, self.R.RESULT_OK, s.pause(pausing))
 
     def step(self, request, response):
-        done, why = self.session.step(int(request.steps))
-        self.stopped = self.stopped and done == 0
+        self.before_step()
+        done, why = self.session.step(int(request.steps), self.interrupted)
         if why:  # none ran (not paused, halted, too many), or a halt on the way
             return self._result(response, self.R.RESULT_OPERATION_FAILED, why)
         return self._result(response, self.R.RESULT_OK, f"{done} steps, t = {self.session.now:.6f} s")
 
     def reset(self, request, response):
         scope, Reset = request.scope, self.Reset
+        known = Reset.SCOPE_TIME | Reset.SCOPE_STATE | Reset.SCOPE_SPAWNED
+        if scope != Reset.SCOPE_ALL and scope & ~known:
+            return self._result(response, self.R.RESULT_FEATURE_UNSUPPORTED,
+                                f"scope {scope}: bits the standard does not define (SCOPE_TIME 1, SCOPE_STATE 2, "
+                                "SCOPE_SPAWNED 4, or SCOPE_ALL 255)")
         if scope & Reset.SCOPE_TIME and scope != Reset.SCOPE_ALL:
             return self._result(response, self.R.RESULT_FEATURE_UNSUPPORTED,
                                 f"scope {scope}: simulated time never goes back here (tf and every node on /clock "
                                 "would break): reset with scope STATE, ALL or DEFAULT, and time runs on")
         if scope in (Reset.SCOPE_DEFAULT, Reset.SCOPE_ALL) or scope & Reset.SCOPE_STATE:
-            return self._result(response, self.R.RESULT_OK, self.session.reset())
-        if scope == Reset.SCOPE_SPAWNED:
-            return self._result(response, self.R.RESULT_OK, "nothing was spawned: nothing to reset")
-        return self._result(response, self.R.RESULT_FEATURE_UNSUPPORTED,
-                            f"scope {scope}: not a combination of SCOPE_STATE (2) and SCOPE_SPAWNED (4)")
+            return self._result(response, self.R.RESULT_OK,
+                                f"{self.session.reset()}; simulated time runs on (the /clock never goes back)")
+        return self._result(response, self.R.RESULT_OK, "nothing was spawned: nothing to reset")  # SCOPE_SPAWNED
