@@ -110,6 +110,10 @@ setup(
         'pyyaml>=6.0',
         'mcap>=1.5',  # BagWriter.flush() needs mcap's Writer.flush(), new in 1.5
         'mcap-ros2-support>=0.5',
+        # mcap's chunk codecs (mcap requires them): mta recover unpacks chunks with them directly,
+        # never past what a chunk claims
+        'zstandard>=0.21',
+        'lz4>=4.0.2',
         # The figures are what `mta analyze` (and so `mta session`, `make run`) is for, and
         # package.xml makes python3-matplotlib a hard dependency of a ROS install too.
         'matplotlib>=3.6.3',

@@ -72,6 +72,8 @@ _PIP_ONLY = {
     'mcap': 'mcap',
     'mcap_ros2': 'mcap-ros2-support',
     'rosbags': 'rosbags',
+    'zstandard': 'zstandard',  # mcap's chunk codecs (mcap requires them), used by mta recover
+    'lz4': 'lz4',
 }
 #: mta sweep's engine libraries, without a rosdistro key: setup.py's extra 'sweep'
 _SWEEP_EXTRA = {'dask': 'dask', 'distributed': 'dask', 'pyarrow': 'pyarrow', 'SALib': 'SALib', 'pandas': 'pandas'}
