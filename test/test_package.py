@@ -263,6 +263,8 @@ def _build_env(tmp_path):
     for var in ('COLCON_DEFAULTS_FILE', 'COLCON_PREFIX_PATH'):
         env.pop(var, None)
     env['PYTHONDONTWRITEBYTECODE'] = '1'
+    # the install's own cache beside its sources (make test-noble points numba elsewhere)
+    env.pop('NUMBA_CACHE_DIR', None)
     return env
 
 
