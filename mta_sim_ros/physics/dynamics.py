@@ -9,7 +9,10 @@ Input, held over a step: (steering command, rad; speed set-point, m/s).
 
     q'     = G(q, psi_1) V,  G = (cos(th_1 + psi_1), sin(th_1 + psi_1), kapT_1 .. kapT_n)
     psi_1' = actuator(command, psi_1)
-    M V'   = F_A1 - sum_k F_Bk kapB_k - R             (one pseudo-velocity: M is a scalar)
+    M V'   = F_A1 - sum_k F_Bk kapB_k - sum_k F_gk - R   (one pseudo-velocity: M is a scalar)
+
+F_gk is cart k's grade resistance on a tilted plane (the train's terrain), -m_k g_p . v_Ck / V
+with g_p gravity's component in the plane: 0 on the level.
 
 with M and the velocity term R built by one of the article's two algorithms:
     algorithm 2 (default): direct differentiation by the pseudo-velocity,
@@ -80,6 +83,7 @@ class Terms:
     mass: float  # M, kg: T = 1/2 M V^2
     velocity_term: float  # R, N
     resistance: list  # F_Bk per cart, N (signed: > 0 opposes forward motion of B_k)
+    grade: list  # each cart's grade resistance referred to V, N (kernel.grade_resistance; 0 on the level)
     traction: float  # F_A1, N
     steering_rate: float  # psi_1', rad/s
     acceleration: float  # V', m/s^2
@@ -139,12 +143,21 @@ class Model:
 
         resistance = [kernel.resistance(self.P, k, kb * V, kernel.NATURAL) for k, kb in enumerate(ch.kapB)]
         generalized_resistance = resistance_force(resistance, ch.kapB)
+        grade = [0.0] * n
+        if self.P[kernel.H.slope]:  # the grade resistances: algorithm 2 by the chain, 1 by G^T Q_h
+            if self.algorithm == 2:
+                grade = [kernel.grade_resistance(self.P, k, heading[k], kb, kt)
+                         for k, (kb, kt) in enumerate(zip(ch.kapB, ch.kapT))]
+            else:
+                grade = self._holonomic.grade_resistance(yl, ch, self.P[kernel.H.gravity_x],
+                                                         self.P[kernel.H.gravity_y])
+            generalized_resistance = generalized_resistance + sum(grade)
         traction, acceleration, governor_rate, prescribed = kernel.traction_law(self.P, V, v_set, z, kernel.no_mode())
         if prescribed:
             traction = mass * acceleration + generalized_resistance + velocity_term  # inverse dynamics
         else:
             acceleration = cauchy_acceleration(traction, generalized_resistance, velocity_term, mass)
-        return Terms(ch, mass, velocity_term, resistance, traction, psi_rate, acceleration, governor_rate)
+        return Terms(ch, mass, velocity_term, resistance, grade, traction, psi_rate, acceleration, governor_rate)
 
     def _direct(self, ch: Chain, V: float) -> tuple[float, float]:
         """Algorithm 2 (``mass_terms``)."""
@@ -188,10 +201,12 @@ class Model:
         return 0.5 * tm.mass * V * V
 
     def power_balance(self, y, command: float, v_set: float) -> tuple[float, float]:
-        """(F_A1 V - sum F_Bk s'_Bk, dT/dt) at this state; the two are equal (MODEL.md)."""
+        """(F_A1 V - sum F_Bk s'_Bk - sum F_gk V, dT/dt) at this state; the two are equal (MODEL.md;
+        F_gk V = dU_k/dt, the rate of each cart's potential energy on a tilted plane)."""
         tm = self.terms(y, command, v_set)
         V = float(y[self.layout.speed])
-        applied = tm.traction * V - sum(f * kb * V for f, kb in zip(tm.resistance, tm.chain.kapB))
+        applied = tm.traction * V - sum(f * kb * V for f, kb in zip(tm.resistance, tm.chain.kapB)) \
+            - sum(g * V for g in tm.grade)
         dT_dt = tm.mass * V * tm.acceleration + tm.velocity_term * V  # d/dt(1/2 M V^2) = M V V' + 1/2 M' V^2
         return applied, dT_dt
 

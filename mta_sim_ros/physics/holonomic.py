@@ -100,3 +100,21 @@ class HolonomicReduction:
             e_k = np.array([math.cos(heading[k]), math.sin(heading[k])])
             out[k] = G @ (self.point_jacobian(self.DB[k], heading).T @ e_k)
         return out
+
+    def grade_resistance(self, y: list, ch: Chain, gravity_x: float, gravity_y: float) -> list:
+        """Each cart's grade resistance referred to V, N, by this algorithm's road: -G^T J_Ck^T
+        m_k g_p, gravity's component g_p = (gravity_x, gravity_y) in the plane acting at C_k (the
+        generalized force of a holonomic system, reduced by G). Algorithm 2 has it from the chain's
+        factors (``kernel.grade_resistance``); the tests hold the two equal to round-off."""
+        heading = np.array(y[2 : 2 + self.n])
+        G, _ = self.constraint_matrix(heading, y[2 + self.n], ch, 0.0, 0.0)
+        g = np.array([gravity_x, gravity_y])
+        return [-float(G @ (self.point_jacobian(self.DC[k], heading).T @ (self.m[k] * g))) for k in range(self.n)]
+
+    def gravity_force(self, heading: np.ndarray, gravity_x: float, gravity_y: float) -> np.ndarray:
+        """Q_h of gravity's component g_p in the plane: sum_k J_Ck^T m_k g_p (n + 2; zero on the level)."""
+        g = np.array([gravity_x, gravity_y])
+        Q = np.zeros(self.n + 2)
+        for k in range(self.n):
+            Q += self.point_jacobian(self.DC[k], heading).T @ (self.m[k] * g)
+        return Q

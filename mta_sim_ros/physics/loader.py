@@ -18,6 +18,7 @@ Units are SI. Angles are in radians, or in degrees under the same key with ``_de
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sys
@@ -27,11 +28,11 @@ import numpy as np
 
 from .. import validate
 from ..validate import Rule
-from . import maneuvers, spec
+from . import maneuvers, spec, terrain
 from .reader import Section, SpecError, fail, parse, read, show
 from .schema import (ACTUATOR, CART, DRAFT, FIDELITY_CHOICES, FORCES, FUEL, IMPLEMENT, INITIAL, INTEGRATOR,
                      MANEUVER_PARAMS, NAME_CHARS, NEEDS, ROLLING, SCENE, SPEED_COMMAND_TABLE, SPEED_TABLE, STEERING,
-                     STEERING_TABLE, TRACTION, TRACTION_LAWS, TRAIN)
+                     STEERING_TABLE, TERRAIN, TRACTION, TRACTION_LAWS, TRAIN)
 
 INTEGRATOR_METHODS = spec.INTEGRATOR_METHODS
 CART_FIELDS = CART.keys
@@ -305,12 +306,29 @@ def _needs(top: Section) -> Optional[spec.Needs]:
     return spec.Needs(**{key: NEEDS[key].read(s) for key in s.values})
 
 
+def _terrain(top: Section) -> Optional[terrain.Plane]:
+    """The plane of ``terrain`` (None: level ground), its slope at most terrain.MAX_SLOPE_DEG."""
+    if not top.has("terrain"):
+        return None
+    s = top.section("terrain", TERRAIN.keys)
+    values = TERRAIN.read(s, *TERRAIN.keys)
+    plane = terrain.Plane(values["grade_percent"] / 100.0, values["cross_slope_percent"] / 100.0)
+    steepest = math.degrees(math.atan(math.hypot(plane.grade, plane.cross_slope)))
+    if steepest > terrain.MAX_SLOPE_DEG:
+        s.fail("grade_percent", values["grade_percent"], f"with cross_slope_percent {values['cross_slope_percent']:g}"
+               f" a slope of at most {terrain.MAX_SLOPE_DEG:g} deg (this is {steepest:.1f} deg)")
+    return plane
+
+
 def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.Scene:
     top = Section(data, "", source, SCENE.keys)
     if train is None:
         train = _scene_train(top)
     else:
         SCENE["train"].read(top)  # still a required field; the train itself is the one given
+    plane = _terrain(top)
+    if plane is not None:  # the train on its ground: every level packs the plane's gravity
+        train = dataclasses.replace(train, terrain=plane)
     initial = _initial(top, train)
     speed = _speed(top)
     publish_rate = SCENE["publish_rate"].read(top)

@@ -40,6 +40,7 @@ class Outputs:
     traction: float  # F_A1, N
     power: float  # N = F_A1 V, W
     resistance_power: float  # sum F_Bk s'_Bk, W
+    grade_power: float  # sum F_gk V, W: the rate of the carts' potential energy (0 on the level)
     kinetic_energy: float  # T = 1/2 M V^2, J
     jackknife_margin: float  # rad, see guards.jackknife_margin
 
@@ -64,7 +65,8 @@ def kernel_outputs(P: np.ndarray, t: float, y, command: float, v_set: float, max
         speed=V, steering=float(y[n + 2]), steering_rate=float(sc[kernel.STEERING_RATE]), command=command,
         speed_setpoint=v_set,
         resistance=cart[:, kernel.RES], traction=traction, power=traction * V,
-        resistance_power=float(sc[kernel.RES_POWER]), kinetic_energy=0.5 * float(sc[kernel.MASS]) * V * V,
+        resistance_power=float(sc[kernel.RES_POWER]), grade_power=float(sc[kernel.GRADE_POWER]),
+        kinetic_energy=0.5 * float(sc[kernel.MASS]) * V * V,
         jackknife_margin=float(sc[kernel.MARGIN]))
 
 
@@ -103,6 +105,7 @@ def reference_outputs(model, t: float, y: np.ndarray, command: float, v_set: flo
         traction=tm.traction,
         power=tm.traction * V,
         resistance_power=float(np.dot(resistance, axle_speed)),
+        grade_power=float(sum(g * V for g in tm.grade)),
         kinetic_energy=0.5 * tm.mass * V * V,
         jackknife_margin=min(margins, default=float("inf")),
     )

@@ -17,7 +17,7 @@ from typing import Any, Optional
 
 from .. import validate
 from ..validate import ANY, POSITIVE, Rule
-from . import maneuvers, spec
+from . import maneuvers, spec, terrain
 from .reader import REQUIRED
 
 # --------------------------------------------------------------------------- ranges
@@ -60,6 +60,7 @@ HEADING = _magnitude(1e3, "rad")
 TIME = _magnitude(validate.MAX_DURATION, "s")
 TOLERANCE = _up_to(1.0, "(relative or absolute)")
 MANEUVER_PARAM = _magnitude(validate.MAX_DURATION, "")  # s, rad, m/s, m: each manoeuvre checks its own
+GRADE = _magnitude(round(100.0 * math.tan(math.radians(terrain.MAX_SLOPE_DEG)), 1), "%")
 HITCH_ANGLE = Rule("in (0, pi]", lambda x: 0 < x <= math.pi)
 ROLLING_COEFFICIENT = Rule("in [0, 1)", lambda x: 0 <= x < 1)
 MAX_STEER = Rule("in (0, pi/2)", lambda x: 0 < x < math.pi / 2)
@@ -330,6 +331,13 @@ NEEDS = Schema("Needs", "needs", "What the scene needs from the simulator: the o
                "level predicted to meet them.", tuple(
     Field(key, NUMBER, _NEED[key][0], _NEED[key][1], POSITIVE, None, default_text="not needed")
     for key in spec.Needs.__dataclass_fields__), notes=("at least one field",))
+TERRAIN = Schema("Terrain", "terrain", "The plane the train moves in: its rise per 100 m along the world's x and y "
+                 "axes. The scene's positions (initial, and every x, y of the run) are measured along the ground, "
+                 "in the plane's own frame; the outputs' 3D poses place them in the world (docs/terrain.md).", (
+    Field("grade_percent", NUMBER, "rise per 100 m horizontally along the world's x axis (> 0: uphill to +x)", "%",
+          GRADE, 0.0),
+    Field("cross_slope_percent", NUMBER, "rise per 100 m horizontally along the world's y axis", "%", GRADE, 0.0),
+), notes=(f"the plane's slope at most {terrain.MAX_SLOPE_DEG:g} deg",))
 SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, steering and speed commands, "
                "duration, integrator (config/scenes/*.yaml).", (
     Field("name", TEXT, "the scene's name: it names the bag of a run (bags/<name>.mcap)",
@@ -348,9 +356,11 @@ SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, 
           choices=FIDELITY_CHOICES, default=spec.Scene.fidelity),
     Field("needs", MAPPING, "the outputs the scene needs and their tolerances", default=None,
           default_text="not stated (auto keeps the dynamic level)", schema=NEEDS),
+    Field("terrain", MAPPING, "the plane the train moves in", default=None, default_text="level ground",
+          schema=TERRAIN),
 ))
 
 #: every mapping of a train file and of a scene file, in the order of the reference
 TRAIN_SCHEMAS = (TRAIN, CART, FORCES, *TRACTION.values(), ROLLING, DRAFT, ACTUATOR, IMPLEMENT, FUEL)
 SCENE_SCHEMAS = (SCENE, INITIAL, STEERING, STEERING_TABLE, MANEUVER_PARAMS, SPEED_COMMAND_TABLE, SPEED_TABLE,
-                 INTEGRATOR, NEEDS)
+                 INTEGRATOR, NEEDS, TERRAIN)

@@ -40,6 +40,7 @@ from .geometry import cart_points, hitch_angles
 from .holonomic import HolonomicReduction
 from .outputs import Outputs
 from .spec import Train
+from .terrain import PlaneFrame
 
 # Normalised cornering stiffness C_alpha / F_z of an agricultural tyre on soil, per rad. An
 # assumption, not a measurement and not taken from a checked source: road car tyres give
@@ -67,8 +68,11 @@ def axle_stiffness(train: Train) -> tuple[float, np.ndarray]:
     else CORNERING_COEFFICIENT times the static axle load: the tractor's weight split between its
     axles by the position of its centre of mass (front share c_1 / l_1), a trailer's weight
     carried by its axle and its hitch in the same way (axle share 1 - c_k / l_k). Hitch loads
-    passed on to the cart in front are neglected."""
+    passed on to the cart in front are neglected. On a tilted plane the load is the normal one,
+    m g cos(slope)."""
     g = train.gravity
+    if train.terrain is not None:
+        g *= PlaneFrame.of(train.terrain).z[2]
     rear = []
     front = 0.0
     for k, cart in enumerate(train.carts):
@@ -143,6 +147,8 @@ class SlipModel:
         np.fill_diagonal(DA, 0.0)
         self._DA = DA
         self.front_stiffness, self.stiffness = axle_stiffness(train)
+        self.train_masses = self._hol.m
+        self._gravity = np.array([self.P[kernel.H.gravity_x], self.P[kernel.H.gravity_y]])
 
     # -- conversion from the no-slip state ----------------------------------------------------
     def from_dynamic_state(self, y: np.ndarray) -> np.ndarray:
@@ -208,6 +214,8 @@ class SlipModel:
         resistance = np.array([kernel.resistance(P, k, vl, kernel.NATURAL) for k, vl in enumerate(v_long.tolist())])
         forces_B = -resistance[:, None] * E + lateral[:, None] * N
         Q = self._generalized(front_lateral * nd, forces_B, N)
+        if P[kernel.H.slope]:  # gravity's component in the plane, at each C_k
+            Q = Q + self._hol.gravity_force(heading, P[kernel.H.gravity_x], P[kernel.H.gravity_y])
         Mh = self._hol.mass_matrix(heading)
         h = self._hol.velocity_forces(heading, w)
         unit = np.zeros(n + 2)
@@ -285,6 +293,7 @@ class SlipModel:
             traction=tm.traction,
             power=tm.traction * tm.speed,
             resistance_power=float(tm.resistance @ tm.axle_speed),
+            grade_power=-float(np.sum(self.train_masses[:, None] * vC * self._gravity)),
             kinetic_energy=0.5 * float(y[L.velocity] @ tm.mass_matrix @ y[L.velocity]),
             jackknife_margin=jackknife_margin(self, y)[0],
         )

@@ -20,6 +20,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
+from .terrain import Plane
+
 GRAVITY = 9.80665  # m/s^2, standard gravity
 
 
@@ -136,6 +138,8 @@ class Train:
     implement: Optional[Implement] = None  # the working tool of field operations (None: no field work)
     fuel: Optional[Fuel] = None  # fuel per traction energy (None: fuel not reported)
     source: str = ""  # the file it came from, for messages
+    # the plane the train moves in (a scene's terrain; None: the level): x, y are along it
+    terrain: Optional[Plane] = None
 
     @property
     def n(self) -> int:

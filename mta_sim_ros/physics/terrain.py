@@ -1,9 +1,11 @@
 """The ground under the train: a plane or a height grid, the surface's height and slope at any
-point, a cart's roll and pitch on it, and its static rollover margin (issue 23, its first part).
+point, a cart's roll and pitch on it, and its static rollover margin.
 
-Not yet in the equations of motion nor in the scene files: a scene naming ``terrain`` is still
-refused as an unknown field, so no run pretends to be on a slope. What is here is what the
-model's slope terms and the 3D poses will read.
+A plane is in the equations of motion (a scene's ``terrain``): the train moves in the plane, which
+is the article's planar model exactly, with the model's x, y measured along the ground in the
+plane's own frame (``PlaneFrame``) and gravity split into its component in the plane (a constant
+vector: the grade resistance of every cart) and across it (the normal load: rolling resistance
+scales with its cosine). A height grid is read and checked here but not yet in the equations.
 
 Surface: ``z(x, y)`` in the frame of the train's plane (x, y the model's coordinates, z up), its
 gradient ``G = (dz/dx, dz/dy)``. A plane has a constant G. A grid is a regular array of heights
@@ -71,6 +73,73 @@ class Plane:
 
     def at(self, x: float, y: float) -> Surface:
         return Surface(self.z0 + self.grade * x + self.cross_slope * y, self.grade, self.cross_slope)
+
+
+@dataclass(frozen=True)
+class PlaneFrame:
+    """The frame of a plane the train moves in, in the world frame (REP-103, z up): unit vectors
+    ``x`` (in the plane, over the world's x axis), ``y`` (in the plane, z cross x) and ``z`` (the
+    plane's upward normal), each a 3-tuple; the plane passes through (0, 0, z0). The model's
+    coordinates (u, v) are the point z0 + u x + v y: distances along the ground."""
+
+    x: tuple[float, float, float]
+    y: tuple[float, float, float]
+    z: tuple[float, float, float]
+    z0: float
+
+    @classmethod
+    def of(cls, plane: Plane) -> "PlaneFrame":
+        gx, gy = plane.grade, plane.cross_slope
+        w = math.sqrt(1.0 + gx * gx + gy * gy)
+        r = math.sqrt(1.0 + gx * gx)
+        ex = (1.0 / r, 0.0, gx / r)
+        ez = (-gx / w, -gy / w, 1.0 / w)
+        ey = (ez[1] * ex[2] - ez[2] * ex[1], ez[2] * ex[0] - ez[0] * ex[2], ez[0] * ex[1] - ez[1] * ex[0])
+        return cls(ex, ey, ez, plane.z0)
+
+    def gravity(self, g: float) -> tuple[float, float, float]:
+        """Gravity (0, 0, -g) in this frame: (along x, along y, along the normal), m/s^2. The first
+        two pull every mass along the ground; g cos(slope) = -third presses it on the ground."""
+        return -g * self.x[2], -g * self.y[2], -g * self.z[2]
+
+    def point(self, u: float, v: float, height: float = 0.0) -> tuple[float, float, float]:
+        """The world position of the model's point (u, v), ``height`` above the plane along its normal."""
+        return tuple(u * a + v * b + height * c + (self.z0 if i == 2 else 0.0)
+                     for i, (a, b, c) in enumerate(zip(self.x, self.y, self.z)))
+
+    def rotation(self, heading: float) -> np.ndarray:
+        """The 3 x 3 rotation (world from body) of a body on the plane with heading ``heading`` in
+        the plane's frame: [x y z] Rz(heading)."""
+        c, s = math.cos(heading), math.sin(heading)
+        frame = np.array([self.x, self.y, self.z]).T
+        return frame @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def quaternion(self, heading: float) -> tuple[float, float, float, float]:
+        """(x, y, z, w) of ``rotation(heading)``, w >= 0."""
+        return quaternion_of(self.rotation(heading))
+
+    def roll_pitch(self, heading: float) -> tuple[float, float]:
+        """(roll, pitch), rad, REP-103 (roll about the body's x, left side up > 0; pitch about its
+        y, nose down > 0) of a body with this heading on the plane."""
+        R = self.rotation(heading)
+        return math.atan2(R[2, 1], R[2, 2]), -math.asin(max(-1.0, min(1.0, R[2, 0])))
+
+
+def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:
+    """(x, y, z, w), w >= 0, of a rotation matrix (Shepperd's method: the largest of the four
+    squares first, so no division by a small number)."""
+    t = R[0, 0] + R[1, 1] + R[2, 2]
+    if t > max(R[0, 0], R[1, 1], R[2, 2]):
+        w = 0.5 * math.sqrt(1.0 + t)
+        q = ((R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w)
+    else:
+        i = int(np.argmax([R[0, 0], R[1, 1], R[2, 2]]))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        a = 0.5 * math.sqrt(max(0.0, 1.0 + R[i, i] - R[j, j] - R[k, k]))
+        q = [0.0, 0.0, 0.0, (R[k, j] - R[j, k]) / (4 * a)]
+        q[i], q[j], q[k] = a, (R[j, i] + R[i, j]) / (4 * a), (R[k, i] + R[i, k]) / (4 * a)
+        q = tuple(q)
+    return q if q[3] >= 0 else tuple(-v for v in q)
 
 
 class HeightGrid:

@@ -69,6 +69,9 @@ HEAD = Fields("Head", (
     ("max_accel", "prescribed speed: acceleration limit, m/s^2", lambda s: s.traction.max_accel),
     ("speed_switches", "1 when a draft grows with |speed| (ASABE B != 0): its speed's sign is a switch",
      lambda s: any(d.B != 0.0 for d in s.train.draft)),
+    ("slope", "1 on a tilted plane (the train's terrain): every cart has a grade resistance", lambda s: s.slope),
+    ("gravity_x", "gravity's component along the plane's x axis, m/s^2 (0 on the level)", lambda s: s.gravity[0]),
+    ("gravity_y", "gravity's component along the plane's y axis, m/s^2", lambda s: s.gravity[1]),
 ))
 
 CART = Fields("Cart", (
@@ -136,17 +139,18 @@ def no_mode():
 
 # -- what the kernels record ------------------------------------------------------------------------
 
-#: columns of ``rec`` (rhs's record of each cart's chain factors, for the outputs)
-KAPT, KAPB, KAPC, PSI, RES, KAPT_DOT, KAPB_DOT = range(7)
-REC = 7
+#: columns of ``rec`` (rhs's record of each cart's chain factors, for the outputs); GRADE is the
+#: cart's grade resistance referred to V (``laws.grade_resistance``), 0 on the level
+KAPT, KAPB, KAPC, PSI, RES, KAPT_DOT, KAPB_DOT, GRADE = range(8)
+REC = 8
 
 #: the drawbar pull at A_k (written by ``drawbar_pulls`` only, after ``outputs``: the node's tick,
 #: which publishes no pull, does not compute it)
 AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT, PULL = range(REC, REC + 11)
 OUT = REC + 11
 #: scalar outputs
-REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN, STEERING_RATE = range(7)
-SCALARS = 7
+REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN, STEERING_RATE, GRADE_POWER = range(8)
+SCALARS = 8
 
 #: most switching functions ``switches`` writes beyond the per-cart ones
 FORCE_SWITCHES = 3

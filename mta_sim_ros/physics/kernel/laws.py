@@ -72,6 +72,19 @@ def resistance(P, k, axle_speed, branch):
 
 
 @jitable
+def grade_resistance(P, k, heading, kapB, kapT):
+    """Cart k's grade resistance referred to V, N: -m_k g_p . v_Ck / V, g_p gravity's component in
+    the plane (P's gravity_x, gravity_y), v_Ck / V = kapB_k e_k + c_k kapT_k n_k (its centre of mass
+    C_k = B_k + c_k e_k, B_k rolling along e_k). > 0 while the cart climbs; times V it is the
+    power that lifts the cart, m_k g dz_Ck/dt. It enters Q as the resistances do."""
+    b = HEAD_SIZE + CART_SIZE * k
+    ex, ey = math.cos(heading), math.sin(heading)
+    com_rate = P[b + C.com_offset] * kapT
+    vx, vy = kapB * ex - com_rate * ey, kapB * ey + com_rate * ex
+    return -P[b + C.mass] * (P[H.gravity_x] * vx + P[H.gravity_y] * vy)
+
+
+@jitable
 def held_branch(mode, i):
     """The branch switching function i (``switch_layout``) is held on: NATURAL when no branch is
     held (``mode`` empty) or the law has no such switch (i < 0)."""

@@ -20,6 +20,8 @@ from .base import (
     CX,
     CY,
     GOVERNOR,
+    GRADE,
+    GRADE_POWER,
     HEAD_SIZE,
     KAPB,
     KAPB_DOT,
@@ -49,7 +51,7 @@ from .base import (
     pymax,
     wrap_angle,
 )
-from .laws import resistance, steering_rate, switch_layout, traction_law, traction_limit
+from .laws import grade_resistance, resistance, steering_rate, switch_layout, traction_law, traction_limit
 
 
 @jitable
@@ -68,24 +70,23 @@ def next_speed2(P, b, s, c):
 @jitable
 def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
     """y' into ``dy`` under the held input (steering command, speed set-point, steering rate limit);
-    returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's
-    kapT, kapB, kapC, psi and resistance F_Bk go into its first REC columns. ``mode`` (empty, or
-    one branch per switch: ``branches``) holds each non-smooth law on one of its branches, as a
-    step between two kinks needs (outside its own region a held branch is the smooth extension).
+    returns (F_A1, M). When ``rec`` has rows (n x REC or wider), each cart's record (base.py: kapT,
+    kapB, kapC, psi, F_Bk, rates, F_gk) goes into its first REC columns. ``mode`` (empty, or one
+    branch per switch: ``branches``) holds each non-smooth law on one of its branches, as a step
+    between two kinks needs (outside its own region a held branch is the smooth extension).
 
     The chain (chain.py): walking back from the tractor, V_k = kap_k V and psi_k give
     th'_k = kap_k sin(psi_k) V / l_k, s'_Bk = kap_k cos(psi_k) V, s'_Ck = kap_k rc_k V; each rate
     ``*_dot`` is the exact time derivative of the line above it. Algorithm 2 (dynamics.py):
-    M = sum m kapC^2 + J kapT^2, R = 1/2 M' V, M V' = F_A1 - sum F_Bk kapB_k - R."""
+    M = sum m kapC^2 + J kapT^2, R = 1/2 M' V, M V' = F_A1 - sum F_Bk kapB_k - sum F_gk - R, F_gk the
+    grade resistances on a tilted plane (``grade_resistance``; absent on the level)."""
     n = int(P[H.n])
-    law = int(P[H.law])
-    forces_on = law != KINEMATIC
-    held = mode.shape[0] > 0
-    i_speed = switch_layout(P)[4]
+    forces_on = int(P[H.law]) != KINEMATIC
+    sloped, held, i_speed = P[H.slope] != 0.0, mode.shape[0] > 0, switch_layout(P)[4]
     psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
     psi_rate = steering_rate(P, psi1, command, max_rate, mode[0] if held else NATURAL)
 
-    mass, mass_rate, generalized_resistance = 0.0, 0.0, 0.0
+    mass, mass_rate, generalized_resistance, grade_sum = 0.0, 0.0, 0.0, 0.0
     k_val, k_dot = 1.0, 0.0  # kap_1 = 1
     p_val, p_dot = psi1, psi_rate
     theta_rate_prev, beta_dot_prev = 0.0, 0.0
@@ -115,8 +116,10 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
                 i_speed += 1
             force = resistance(P, k, b_val * V, branch)
             generalized_resistance += force * b_val
+            grade = grade_resistance(P, k, y[2 + k], b_val, t_val) if sloped else 0.0
+            grade_sum += grade
             if rec.shape[0]:
-                rec[k, KAPC], rec[k, RES] = kc_val, force
+                rec[k, KAPC], rec[k, RES], rec[k, GRADE] = kc_val, force, grade
                 rec[k, KAPT_DOT], rec[k, KAPB_DOT] = t_dot, k_dot * c + k_val * c_dot
         if rec.shape[0]:
             rec[k, KAPT], rec[k, KAPB], rec[k, PSI] = t_val, b_val, p_val
@@ -132,12 +135,10 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
 
     traction, acceleration, governor_rate = 0.0, z, 0.0  # kinematic: z is the ramp slope (kinematic.py)
     if forces_on:
-        traction, acceleration, governor_rate, prescribed = traction_law(P, V, v_set, z, mode)
-        velocity_term = 0.5 * mass_rate * V
-        if prescribed:  # the force by inverse dynamics
-            traction = mass * acceleration + generalized_resistance + velocity_term
-        else:  # M V' = F_A1 - sum F_Bk kapB_k - R
-            acceleration = (traction - generalized_resistance - velocity_term) / mass
+        if sloped:  # the grade resistances enter Q as the resistances do
+            generalized_resistance = generalized_resistance + grade_sum
+        traction, acceleration, governor_rate = speed_equation(P, V, v_set, z, mode, mass, 0.5 * mass_rate * V,
+                                                               generalized_resistance)
     course = y[2] + psi1  # direction of v_A1
     dy[0] = V * math.cos(course)
     dy[1] = V * math.sin(course)
@@ -145,6 +146,18 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
     dy[n + 3] = acceleration
     dy[n + 4] = governor_rate
     return traction, mass
+
+
+@jitable
+def speed_equation(P, V, v_set, z, mode, mass, velocity_term, generalized_resistance):
+    """(F_A1, V', z') from the traction law: M V' = F_A1 - (sum F_Bk kapB_k + sum F_gk) - R, or for a
+    prescribed speed the force by inverse dynamics."""
+    traction, acceleration, governor_rate, prescribed = traction_law(P, V, v_set, z, mode)
+    if prescribed:
+        traction = mass * acceleration + generalized_resistance + velocity_term
+    else:
+        acceleration = (traction - generalized_resistance - velocity_term) / mass
+    return traction, acceleration, governor_rate
 
 
 @jitable
@@ -186,7 +199,7 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
     traction, mass = rhs(P, y, command, v_set, max_rate, dy, cart, no_mode())
     V = y[n + 3]
     ax, ay = y[0], y[1]
-    res_power = 0.0
+    res_power, grade_power = 0.0, 0.0
     best = math.inf
     for k in range(n):
         b = HEAD_SIZE + CART_SIZE * k
@@ -200,6 +213,7 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
         cart[k, VC], cart[k, VB], cart[k, VT] = cart[k, KAPC] * V, cart[k, KAPB] * V, cart[k, KAPT] * V
         cart[k, PULL] = math.nan  # not computed here (drawbar_pulls)
         res_power += cart[k, RES] * cart[k, VB]
+        grade_power += cart[k, GRADE] * V
         if k:
             phi = wrap_angle(y[1 + k] - th)
             cart[k, PHI] = phi
@@ -210,7 +224,7 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
             cart[k, PHI] = 0.0
     sc[REAR_X], sc[REAR_Y] = ax, ay
     sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
-    sc[STEERING_RATE] = dy[n + 2]
+    sc[STEERING_RATE], sc[GRADE_POWER] = dy[n + 2], grade_power
     return traction
 
 
@@ -219,7 +233,8 @@ def drawbar_pulls(P, y, acceleration, cart):
     """The pull at each hitch A_k (k >= 2) along the towed cart's axis e_k, N, into cart[k, PULL]:
     the constraint force of the model, by Newton-Euler on each towed cart from the last forward.
     Cart k (unit axis e_k, normal n_k, th_k) carries the hitch force H_k at A_k, -H_{k+1} at A_{k+1},
-    the resistance -F_Bk e_k and the tyres' lateral force N_k n_k at B_k. With the centre of mass
+    the resistance -F_Bk e_k, the tyres' lateral force N_k n_k at B_k and, on a tilted plane, gravity's
+    component m_k g_p in the plane at C_k (taken into a_e, a_n below). With the centre of mass
     C_k = B_k + c_k e_k, its acceleration a_e = d(s'_Bk)/dt - c_k th'_k^2, a_n = s'_Bk th'_k + c_k th''_k,
     where d(s'_Bk)/dt = kapB' V + kapB V' and th''_k = kapT' V + kapT V' (the chain's rates, ``rhs``):
 
@@ -231,6 +246,7 @@ def drawbar_pulls(P, y, acceleration, cart):
     the resistances behind it (test_sweep_metrics)."""
     n = int(P[H.n])
     V = y[n + 3]
+    sloped = P[H.slope] != 0.0
     hx, hy = 0.0, 0.0  # H_{k+1}, world frame
     for k in range(n - 1, 0, -1):
         b = HEAD_SIZE + CART_SIZE * k
@@ -244,6 +260,9 @@ def drawbar_pulls(P, y, acceleration, cart):
         speed_dot = cart[k, KAPB_DOT] * V + cart[k, KAPB] * acceleration
         a_e = speed_dot - com * rate * rate
         a_n = cart[k, VB] * rate + com * rate_dot
+        if sloped:  # gravity in the plane at C_k: as if the cart accelerated by -g_p
+            a_e -= P[H.gravity_x] * ex + P[H.gravity_y] * ey
+            a_n -= P[H.gravity_x] * nx + P[H.gravity_y] * ny
         h_e = hx * ex + hy * ey + cart[k, RES] + m * a_e
         h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * (hx * nx + hy * ny)) / P[b + C.length]
         cart[k, PULL] = h_e

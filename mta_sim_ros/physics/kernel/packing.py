@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from .. import forces
+from ..terrain import PlaneFrame
 from .base import CART, CART_SIZE, DRAFT, HEAD, HEAD_SIZE, LAWS, C, H
 
 
@@ -18,7 +19,10 @@ def pack(train, law: str | None = None, traction=None) -> np.ndarray:
     law = law or traction.law
     if law not in LAWS:
         raise ValueError(f"traction law {law!r} has no kernel (one of {', '.join(LAWS)})")
-    values = HEAD.values(SimpleNamespace(train=train, law=law, traction=traction))
+    frame = PlaneFrame.of(train.terrain) if train.terrain is not None else None
+    gravity = frame.gravity(train.gravity) if frame else (0.0, 0.0)
+    values = HEAD.values(SimpleNamespace(train=train, law=law, traction=traction, slope=frame is not None,
+                                         gravity=gravity))
     drafts = []
     for k, (cart, resistance) in enumerate(zip(train.carts, forces.cart_resistances(train))):
         values += CART.values(SimpleNamespace(cart=cart, resistance=resistance, draft_first=len(drafts)))

@@ -1,0 +1,259 @@
+"""The train on a tilted plane (a scene's ``terrain``) against closed forms and balance laws: the
+grade resistance m g sin(a) per cart, the energy balance with the potential energy taken from the
+carts' world heights, the lateral constraint forces against m g sin(b) on a side slope, the slip
+level's steady drift tan(b) / K, both algorithms and the kernel, and the level plane bit for bit."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import trains
+from scipy.integrate import solve_ivp
+
+from mta_sim_ros.physics import loader
+from mta_sim_ros.physics.dynamics import Model
+from mta_sim_ros.physics.geometry import cart_points
+from mta_sim_ros.physics.reader import SpecError
+from mta_sim_ros.physics.slip import CORNERING_COEFFICIENT, SlipModel, no_slip_tyre_forces
+from mta_sim_ros.physics.terrain import Plane, PlaneFrame, Surface, orientation
+from mta_sim_ros.run.simulation import Simulation, run_scene
+
+G = 9.80665
+
+
+def on(tr, grade: float, cross: float):
+    return dataclasses.replace(tr, terrain=Plane(grade, cross))
+
+
+def straight_state(model, heading: float, speed: float) -> np.ndarray:
+    L = model.layout
+    y = np.zeros(L.size)
+    y[L.heading] = heading
+    y[L.speed] = speed
+    return y
+
+
+# -- the plane's frame -------------------------------------------------------------------------
+@pytest.mark.parametrize("grade, cross", [(0.05, 0.0), (0.0, 0.12), (-0.3, 0.4), (1.2, -0.9)])
+def test_plane_frame_is_the_plane(grade, cross):
+    """The frame's x, y lie in the plane z = grade X + cross Y and its z is the plane's normal; its
+    points are on the plane at their distances along the ground; gravity's parts add up to g."""
+    f = PlaneFrame.of(Plane(grade, cross))
+    R = np.array([f.x, f.y, f.z]).T
+    assert np.allclose(R.T @ R, np.eye(3), atol=1e-15) and np.linalg.det(R) == pytest.approx(1.0)
+    for u, v in ((3.0, 0.0), (0.0, -2.0), (5.0, 7.0)):
+        X, Y, Z = f.point(u, v)
+        assert Z == pytest.approx(grade * X + cross * Y, abs=1e-12)
+        assert math.dist((0.0, 0.0, 0.0), (X, Y, Z)) == pytest.approx(math.hypot(u, v))
+    assert f.y[0] == pytest.approx(0.0, abs=1e-15) or abs(cross) > 0  # x over the world's x axis
+    assert f.x[1] == 0.0
+    gx, gy, gz = f.gravity(G)
+    assert math.hypot(gx, gy, gz) == pytest.approx(G)
+    assert -gz == pytest.approx(G / math.sqrt(1 + grade ** 2 + cross ** 2))  # g cos(slope)
+
+
+@pytest.mark.parametrize("heading", [0.0, 0.7, 2.0, -2.9])
+def test_plane_roll_pitch_agree_with_the_surface_formula(heading):
+    """A body on the plane: its roll and pitch from the frame's rotation equal terrain.orientation's
+    closed forms at its horizontal heading."""
+    plane = Plane(0.2, -0.15)
+    f = PlaneFrame.of(plane)
+    R = f.rotation(heading)
+    horizontal = math.atan2(R[1, 0], R[0, 0])
+    roll, pitch = f.roll_pitch(heading)
+    expect = orientation(horizontal, Surface(0.0, plane.grade, plane.cross_slope))
+    assert roll == pytest.approx(expect[0], abs=1e-12) and pitch == pytest.approx(expect[1], abs=1e-12)
+    q = np.array(f.quaternion(heading))
+    x, y, z, w = q
+    Rq = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                   [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                   [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    assert np.allclose(Rq, R, atol=1e-14)
+
+
+# -- grade resistance: m g sin(a) per cart ----------------------------------------------------
+@pytest.mark.parametrize("n", [1, 3, 5])
+@pytest.mark.parametrize("grade", [0.05, -0.08, 0.3])
+def test_grade_resistance_straight_up_a_grade(n, grade):
+    """Straight up (heading 0) a pure grade a: each cart's grade resistance is m g sin(a); across
+    it (heading pi/2) zero; its power m g sin(a) V is the rise of the potential energy."""
+    tr = on(trains.train(n), grade, 0.0)
+    model = Model(tr)
+    sin_a = grade / math.sqrt(1 + grade * grade)
+    tm = model.terms(straight_state(model, 0.0, 3.0), 0.0, 3.0)
+    for cart, f in zip(tr.carts, tm.grade):
+        assert f == pytest.approx(cart.mass * G * sin_a, rel=1e-13)
+    across = model.terms(straight_state(model, 0.5 * math.pi, 3.0), 0.0, 3.0)
+    assert max(abs(f) for f in across.grade) < 1e-9 * tr.carts[0].mass
+    out = model.outputs(0.0, straight_state(model, 0.0, 3.0), 0.0, 3.0)
+    assert out.grade_power == pytest.approx(sum(c.mass for c in tr.carts) * G * sin_a * 3.0, rel=1e-13)
+
+
+def test_extra_traction_power_on_a_grade_at_steady_speed():
+    """The governor holding 3 m/s straight up a 5 % grade: the traction power exceeds the level's
+    by sum m g sin(a) V less the rolling resistance's drop to f m g cos(a) (MODEL.md's closed form)."""
+    grade, V = 0.05, 3.0
+    base = trains.train(3)
+    sin_a, cos_a = grade / math.sqrt(1 + grade ** 2), 1 / math.sqrt(1 + grade ** 2)
+    powers = {}
+    for tr in (base, on(base, grade, 0.0)):
+        sim, err = run_scene(trains.scene(tr, duration=60.0, rate=5.0))
+        assert err is None
+        out = sim.outputs()
+        assert out.speed == pytest.approx(V, abs=1e-6)
+        powers[tr.terrain] = out.power
+    mass = sum(c.mass for c in base.carts)
+    rolling = sum(r.coefficient * base.carts[base.cart_index(r.cart)].mass for r in base.rolling) * G
+    expect = mass * G * sin_a * V - rolling * (1 - cos_a) * V
+    assert powers[Plane(grade, 0.0)] - powers[None] == pytest.approx(expect, rel=1e-6)
+
+
+# -- energy: traction work = kinetic + potential + resistances ---------------------------------
+@pytest.mark.parametrize("law", ["governor", "constant"])
+def test_energy_balance_with_the_potential_energy(law):
+    """Along a slalom on a plane tilted both ways: the work of traction less the resistances' equals
+    the change of the kinetic energy plus m g times the rise of every centre of mass, its height
+    taken from the world positions of the plane's frame (not from the grade terms)."""
+    traction = trains.GOVERNOR if law == "governor" else trains.Traction("constant", force=45000.0)
+    tr = on(trains.train(3, traction=traction), 0.06, -0.1)
+    model = Model(tr)
+    frame = PlaneFrame.of(tr.terrain)
+    y0 = Simulation(trains.scene(tr, speed=2.5)).y
+
+    def command(t):
+        return 0.25 * math.sin(0.6 * t) + 0.1 * math.sin(1.7 * t)
+
+    def augmented(t, z):
+        dy, tm = model.derivative(z[:-1], command(t), 3.0)
+        V = z[model.layout.speed]
+        return np.append(dy, tm.traction * V - sum(f * kb * V for f, kb in zip(tm.resistance, tm.chain.kapB)))
+
+    def energy(y):
+        com = cart_points(tr, y[0], y[1], y[2:2 + tr.n])["C"]
+        heights = [frame.point(u, v)[2] for u, v in com]
+        return model.kinetic_energy(y, 0.0, 3.0) + G * sum(c.mass * h for c, h in zip(tr.carts, heights))
+
+    sol = solve_ivp(augmented, (0, 20), np.append(y0, 0.0), method="DOP853", rtol=1e-12, atol=1e-12,
+                    t_eval=np.linspace(0, 20, 41))
+    assert sol.success
+    energies = np.array([energy(sol.y[:-1, i]) for i in range(len(sol.t))])
+    work = sol.y[-1]
+    scale = np.max(np.abs(energies - energies[0])) + np.max(np.abs(work)) + 1.0
+    assert np.max(np.abs(energies - energies[0] - work)) < 1e-8 * scale
+    for i in range(0, len(sol.t), 5):
+        applied, dT = model.power_balance(sol.y[:-1, i], command(sol.t[i]), 3.0)
+        assert dT == pytest.approx(applied, rel=1e-10, abs=1e-6)
+
+
+# -- both algorithms, the kernel, the slip level ------------------------------------------------
+@pytest.mark.parametrize("n", [1, 2, 4])
+def test_both_algorithms_and_the_kernel_on_a_slope(n):
+    """Algorithm 1 (gravity as G^T Q_h) equals algorithm 2 (the chain's factors) to round-off; the
+    compiled kernel's y' equals the reference's to the last bit; outputs agree."""
+    tr = on(trains.train(n, traction=trains.prescribed(2.0) if n == 2 else trains.GOVERNOR), 0.15, 0.25)
+    alg1, alg2 = Model(tr, algorithm=1), Model(tr, algorithm=2)
+    rng = np.random.default_rng(40 + n)
+    for _ in range(15):
+        y = trains.random_state(alg2, rng)
+        command, v_set = rng.uniform(-0.5, 0.5), rng.uniform(-3, 3)
+        t1, t2 = alg1.terms(y, command, v_set), alg2.terms(y, command, v_set)
+        scale = sum(c.mass for c in tr.carts) * G
+        assert np.allclose(t1.grade, t2.grade, rtol=0, atol=1e-12 * scale)
+        assert abs(t1.acceleration - t2.acceleration) < 1e-10 * max(1.0, abs(t2.acceleration))
+        assert np.array_equal(alg2.rhs(0.0, y, command, v_set), alg2.derivative(y, command, v_set)[0])
+        k_out, r_out = alg2.outputs(0.0, y, command, v_set), alg1.outputs(0.0, y, command, v_set)
+        assert k_out.grade_power == pytest.approx(r_out.grade_power, rel=1e-9, abs=1e-9 * scale)
+        assert k_out.traction == pytest.approx(r_out.traction, rel=1e-9, abs=1e-6)
+
+
+def test_level_plane_is_the_level_bit_for_bit():
+    """A terrain of 0 % and 0 % runs exactly as no terrain: the same states at every tick."""
+    tr = trains.train(3)
+    sc = trains.scene(tr, table=((0.0, 3.0, 6.0), (0.0, 0.3, -0.2)), duration=12.0)
+    runs = []
+    for t in (tr, on(tr, 0.0, 0.0)):
+        seen = []
+        _, err = run_scene(dataclasses.replace(sc, train=t), on_output=seen.append)
+        assert err is None
+        runs.append(np.array([np.concatenate((o.axle.ravel(), o.heading, [o.speed, o.power])) for o in seen]))
+    assert np.array_equal(runs[0], runs[1])
+
+
+# -- side slope: lateral forces, drawbar pulls, drift --------------------------------------------
+@pytest.mark.parametrize("cross", [0.1, -0.25])
+def test_side_slope_lateral_forces_balance_gravity(cross):
+    """Straight across a side slope b at steady speed: the no-slip axles' lateral forces add up to
+    m g sin(b) of the whole train, pointing uphill; the pull at each hitch is still the resistances
+    behind it (gravity is across the motion), rolling taking the normal load f m g cos(b)."""
+    tr = on(trains.train(3, traction=trains.prescribed(3.0)), 0.0, cross)
+    slip = SlipModel(tr)
+    y = straight_state(slip.dynamic, 0.0, 3.0)
+    front, rear = no_slip_tyre_forces(slip, y, 0.0, 3.0)
+    sin_b, cos_b = cross / math.sqrt(1 + cross ** 2), 1 / math.sqrt(1 + cross ** 2)
+    mass = sum(c.mass for c in tr.carts)
+    assert front + rear.sum() == pytest.approx(mass * G * sin_b, rel=1e-9)
+    from mta_sim_ros.physics import kernel
+
+    cart, _ = kernel.pulls_of(slip.dynamic.P, y, 0.0, 3.0, kernel.max_rate_of(slip.dynamic.P))
+    for k in range(1, tr.n):
+        behind = sum(cart[j, kernel.RES] for j in range(k, tr.n))
+        assert cart[k, kernel.PULL] == pytest.approx(behind, rel=1e-9)
+    rolling_last = tr.rolling[-1].coefficient * tr.carts[-1].mass * G * cos_b * math.tanh(3.0 / tr.smoothing_speed)
+    draft = cart[-1, kernel.RES] - rolling_last
+    assert draft == pytest.approx(kernel.resistance(Model(trains.train(3)).P, 2, 3.0, kernel.NATURAL)
+                                  - tr.rolling[-1].coefficient * tr.carts[-1].mass * G * math.tanh(3.0 / tr.smoothing_speed),
+                                  rel=1e-9)
+
+
+def test_slip_level_drifts_at_tan_b_over_k_on_a_side_slope():
+    """A tractor alone, straight across a side slope b on linear tyres of C = K m g cos(b) per
+    axle share: both axles take their share of m g sin(b) by the same slip angle, alpha = -tan(b) / K
+    (downhill: -y, the plane rising to +y), and the heading stays (no yaw moment)."""
+    cross = 0.15
+    tr = on(trains.train(1, traction=trains.prescribed(3.0), draft=False), 0.0, cross)
+    sc = dataclasses.replace(trains.scene(tr, duration=30.0, rate=2.0, method="LSODA", step=None, rtol=1e-9,
+                                          atol=1e-9), fidelity="slip")
+    sim, err = run_scene(sc)
+    assert err is None
+    tm = sim.model.terms(sim.y, 0.0, 3.0)
+    expect = -cross / CORNERING_COEFFICIENT  # -tan(b) / K
+    assert tm.slip[0] == pytest.approx(expect, rel=1e-8)
+    assert tm.front_slip == pytest.approx(expect, rel=1e-8)
+    assert abs(sim.y[sim.model.layout.heading][0]) < 1e-6
+
+
+# -- the scene's terrain ------------------------------------------------------------------------
+SCENE = """
+train: ../trains/default.yaml
+duration: 5
+steering: {table: {time: [0], angle: [0]}}
+"""
+
+
+def test_scene_terrain_reaches_every_level(tmp_path):
+    """A scene's terrain (percent) is the plane of its train; the levels all pack its gravity."""
+    tr = loader.load_train("config/trains/default.yaml")
+    sc = loader.load_scene_text(SCENE + "terrain: {grade_percent: 5, cross_slope_percent: -8}\n", "s.yaml", tr)
+    assert sc.train.terrain == Plane(0.05, -0.08)
+    assert loader.load_scene_text(SCENE, "s.yaml", tr).train.terrain is None
+
+
+@pytest.mark.parametrize("terrain, words", [
+    ("{grade_percent: 150, cross_slope_percent: 100}", ["grade_percent", "60 deg"]),
+    ("{grade_percent: 200}", ["grade_percent", "173.2"]),
+    ("{grade_percent: .nan}", ["grade_percent"]),
+    ("{grade_percent: '5'}", ["grade_percent"]),
+    ("{slope: 5}", ["slope"]),
+    ("5", ["terrain"]),
+])
+def test_hostile_terrain_is_one_line(terrain, words):
+    tr = loader.load_train("config/trains/default.yaml")
+    with pytest.raises(SpecError) as err:
+        loader.load_scene_text(SCENE + f"terrain: {terrain}\n", "s.yaml", tr)
+    message = str(err.value)
+    assert "\n" not in message
+    for w in words:
+        assert w in message
+
