@@ -257,3 +257,38 @@ def test_hostile_terrain_is_one_line(terrain, words):
     for w in words:
         assert w in message
 
+
+# -- the bag: 3D poses through tf ----------------------------------------------------------------
+def test_a_run_on_a_slope_places_the_train_on_the_plane(tmp_path):
+    """``mta run`` of the shipped side-slope scene, read back by rosbags: map -> odom is the plane's
+    tilt, hitch_poses are in odom, and every hitch pose composed with it lies on the plane
+    z = 0.04 x + 0.12 y with its body z axis the plane's normal (read by scipy's Rotation)."""
+    from rosbags.highlevel import AnyReader
+    from scipy.spatial.transform import Rotation
+
+    from mta_sim_ros import cli
+
+    bag = tmp_path / "slope.mcap"
+    assert cli.main(["run", "--scene", "config/scenes/side_slope_pass.yaml", "--bag", str(bag), "--quiet"]) == 0
+    normal = np.array([-0.04, -0.12, 1.0]) / math.sqrt(1 + 0.04 ** 2 + 0.12 ** 2)
+    with AnyReader([bag]) as reader:
+        msgs = {}
+        for conn, _, raw in reader.messages([c for c in reader.connections if c.topic in ("/tf_static", "/hitch_poses")]):
+            msgs.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
+    tilt = [t for t in msgs["/tf_static"][0].transforms if t.child_frame_id == "odom"]
+    assert len(tilt) == 1 and tilt[0].header.frame_id == "map"
+    r = tilt[0].transform.rotation
+    R = Rotation.from_quat([r.x, r.y, r.z, r.w])
+    assert np.allclose(R.apply([0.0, 0.0, 1.0]), normal, atol=1e-12)
+    checked = 0
+    for poses in msgs["/hitch_poses"][::200]:
+        assert poses.header.frame_id == "odom"
+        for p in poses.poses:
+            world = R.apply([p.position.x, p.position.y, p.position.z])
+            assert world[2] == pytest.approx(0.04 * world[0] + 0.12 * world[1], abs=1e-9)
+            o = p.orientation
+            body = R * Rotation.from_quat([o.x, o.y, o.z, o.w])
+            assert np.allclose(body.apply([0.0, 0.0, 1.0]), normal, atol=1e-12)
+            checked += 1
+    assert checked >= 30
+

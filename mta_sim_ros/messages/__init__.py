@@ -12,7 +12,7 @@ library besides, so ``mta run`` works without a ROS install and writes the node'
 """
 from .diagnostics import DIAGNOSTICS_TYPE, HARDWARE_ID, diagnostic_array, encode_diagnostics, format_value
 from .encoders import CommandEncoder, OutputEncoder, float64_template
-from .frames import FrameEncoder
+from .frames import FrameEncoder, poses_frame
 from .markers import MARKERS_TYPE, TrainMarkers, cart_color, train_markers
 
 
@@ -45,5 +45,6 @@ __all__ = [
     "diagnostic_array",
     "encode_diagnostics",
     "format_value",
+    "poses_frame",
     "train_markers",
 ]

@@ -10,7 +10,11 @@ and the frame of hitch_poses, and filled per tick from templates like the other 
   -z);
 * ``/tf_static`` (tf2_msgs/TFMessage, latched): ``frame_id -> <prefix>odom``, the identity (the
   simulator's odometry is ground truth: odom and the frame of hitch_poses coincide), unless
-  frame_id is the odom frame; with ``cart_frames`` the fixed joints (base_link -> tractor,
+  frame_id is the odom frame. On a terrain (a tilted plane) odom is the plane's own frame (x, y
+  along the ground, z its normal: the model's coordinates), this transform its tilt in the world
+  (terrain.PlaneFrame), and hitch_poses and the markers are stamped in odom (``poses_frame``):
+  every pose is then a 3D pose in frame_id through tf, and the controllers reading hitch_poses keep
+  the model's coordinates; with ``cart_frames`` the fixed joints (base_link -> tractor,
   each cart's hitch -> its body at B_k);
 * ``joint_states`` (sensor_msgs/JointState), every tick: the hitch joints' positions (hitch
   angles th_{k-1} - th_k) and rates, then the steering joint's psi_1 and its rate (the actuator's
@@ -34,6 +38,7 @@ import numpy as np
 from ..bag.cdr import Slot, encode
 from ..bag.template import TIME_SLOTS, CdrTemplate
 from ..bag.writer import stamp, stamp_parts
+from ..physics.terrain import PlaneFrame, quaternion_of
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
@@ -41,6 +46,22 @@ ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
 STRING_TYPE = "std_msgs/msg/String"
 
 IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+
+
+def poses_frame(robot, frame_id: str, plane) -> str:
+    """The frame hitch_poses and the markers are stamped in: frame_id, or on a terrain odom, the
+    plane's frame (the module docstring)."""
+    return robot.odom if plane is not None else frame_id
+
+
+def tilt(time, parent: str, child: str, plane) -> dict:
+    """The TransformStamped parent -> child of a plane's frame (terrain.PlaneFrame) in the world."""
+    frame = PlaneFrame.of(plane)
+    R = np.array([frame.x, frame.y, frame.z]).T
+    qx, qy, qz, qw = quaternion_of(R)
+    return {"header": {"stamp": time, "frame_id": parent}, "child_frame_id": child,
+            "transform": {"translation": {"x": 0.0, "y": 0.0, "z": frame.z0},
+                          "rotation": {"x": qx, "y": qy, "z": qz, "w": qw}}}
 
 
 def transform(time, parent: str, child: str, x=0.0, y=0.0, qz=0.0, qw=1.0) -> dict:
@@ -55,10 +76,11 @@ class FrameEncoder:
     """The frames' messages of one robot model (module docstring): ``encode(out)`` per tick
     (/tf, joint_states, odom), ``latched(t)`` (/tf_static stamped t, robot_description)."""
 
-    def __init__(self, robot, frame_id: str = "map", cart_frames: bool = True):
+    def __init__(self, robot, frame_id: str = "map", cart_frames: bool = True, plane=None):
         """``robot``: a urdf.Robot; ``frame_id``: the frame of hitch_poses; ``cart_frames``:
-        publish the joints' frames too (False: robot_state_publisher does)."""
-        self.robot, self.frame_id, self.cart_frames = robot, frame_id, cart_frames
+        publish the joints' frames too (False: robot_state_publisher does); ``plane``: the train's
+        terrain (None: level)."""
+        self.robot, self.frame_id, self.cart_frames, self.plane = robot, frame_id, cart_frames, plane
         self.n = n = len(robot.carts)
         q = [Slot("q", i) for i in range(2 * (n + 1))]  # z, w of: base_link, the steering, each hitch
         moving = [transform(TIME_SLOTS, robot.odom, robot.base, Slot("xy", 0), Slot("xy", 1), q[0], q[1])]
@@ -85,7 +107,10 @@ class FrameEncoder:
     def static_transforms(self, t: float) -> dict:
         """The TFMessage of /tf_static (module docstring) as plain dicts, stamped t."""
         robot, time = self.robot, stamp(t)
-        fixed = [transform(time, self.frame_id, robot.odom)] if self.frame_id != robot.odom else []
+        fixed = []
+        if self.frame_id != robot.odom:
+            fixed.append(transform(time, self.frame_id, robot.odom) if self.plane is None
+                         else tilt(time, self.frame_id, robot.odom, self.plane))
         if self.cart_frames:
             fixed += [transform(time, j.parent, j.child, j.x) for j in robot.fixed_joints]
         return {"transforms": fixed}

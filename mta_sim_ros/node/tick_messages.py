@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from typing import Mapping, Protocol, Sequence
 
+from ..messages.frames import poses_frame
+
 
 class OutputsEncoder(Protocol):
     def encode(self, out) -> dict[str, bytes]:
@@ -35,8 +37,9 @@ class Encoders(Protocol):
 
     def markers(self, train, frame_id: str) -> MarkersEncoder: ...
 
-    def frames(self, robot, frame_id: str, cart_frames: bool) -> FramesEncoder:
-        """The frames of ``robot`` (urdf.Robot); ``cart_frames``: its joints' frames too."""
+    def frames(self, robot, frame_id: str, cart_frames: bool, plane=None) -> FramesEncoder:
+        """The frames of ``robot`` (urdf.Robot); ``cart_frames``: its joints' frames too; ``plane``:
+        the train's terrain (frames.py: frame_id -> odom carries its tilt)."""
 
     def diagnostics(self, t: float, name: str, level: int, message: str,
                     values: Mapping[str, object]) -> bytes:
@@ -57,10 +60,13 @@ class TickMessages:
         self.latched: dict[str, bytes] = {}  # what the latched topics last published (urdf, /tf_static)
 
     def make(self, frame_id: str, cart_frames: bool) -> None:
-        """The tick's encoders for ``frame_id`` (at start and when it changes)."""
-        self.outputs = self.enc.outputs(self.cart_names, frame_id)
-        self.markers = self.enc.markers(self.train, frame_id)
-        self.frames = self.enc.frames(self.robot, frame_id, cart_frames)
+        """The tick's encoders for ``frame_id`` (at start and when it changes); on a terrain the
+        poses and markers are in the plane's frame, odom (frames.poses_frame)."""
+        plane = self.train.terrain
+        poses = poses_frame(self.robot, frame_id, plane)
+        self.outputs = self.enc.outputs(self.cart_names, poses)
+        self.markers = self.enc.markers(self.train, poses)
+        self.frames = self.enc.frames(self.robot, frame_id, cart_frames, plane)
 
     def of_tick(self, out) -> dict[str, bytes]:
         """topic -> CDR bytes of one tick's outputs and frames (/tf, joint_states, odom)."""

@@ -21,7 +21,7 @@ from pathlib import Path
 from .. import __version__
 from ..bag import DEFAULT_QOS_YAML, BagError, BagWriter
 from ..config import resolve_config_path
-from ..messages import CommandEncoder, FrameEncoder, OutputEncoder
+from ..messages import CommandEncoder, FrameEncoder, OutputEncoder, poses_frame
 from ..messages.topics import FRAME_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, TOPICS, qualified
 from ..messages.urdf import robot_model
 from ..physics.loader import load_scene
@@ -222,8 +222,10 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
             for topic, type_name in FRAME_TOPICS.items():
                 bag.add_topic(qualified(topic), type_name, LATCHED_QOS_YAML if topic in LATCHED_TOPICS
                               else DEFAULT_QOS_YAML)
-            outputs, commands = OutputEncoder(cart_names, args.frame_id), CommandEncoder()  # the node's encoders
-            frames = FrameEncoder(robot, args.frame_id)
+            plane = scene.train.terrain
+            outputs = OutputEncoder(cart_names, poses_frame(robot, args.frame_id, plane))  # the node's encoders
+            commands = CommandEncoder()
+            frames = FrameEncoder(robot, args.frame_id, plane=plane)
             for topic, data in frames.latched(0.0).items():
                 bag.write_raw(qualified(topic), data, 0)
 
