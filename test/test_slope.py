@@ -292,3 +292,31 @@ def test_a_run_on_a_slope_places_the_train_on_the_plane(tmp_path):
             checked += 1
     assert checked >= 30
 
+
+# -- the level chooser sees the slope -------------------------------------------------------------
+def test_the_chooser_s_predictions_bound_the_side_slope_s_errors():
+    """On the shipped side-slope scene the dynamic level's measured errors against the slip level
+    (its tyres drift downhill) stay within what ``fidelity.estimate`` predicts for it, and a scene
+    that needs its poses within 0.5 m gets the slip level."""
+    from mta_sim_ros.physics.spec import Needs
+    from mta_sim_ros.run import fidelity
+
+    sc = dataclasses.replace(loader.load_scene("config/scenes/side_slope_pass.yaml"), duration=25.0)
+    runs = {}
+    for level in ("dynamic", "slip"):
+        seen = []
+        _, err = run_scene(dataclasses.replace(sc, fidelity=level), on_output=seen.append)
+        assert err is None
+        runs[level] = seen
+    pairs = list(zip(runs["dynamic"], runs["slip"]))
+    measured = {
+        "poses": max(float(np.max(np.hypot(*(a.axle - b.axle).T))) for a, b in pairs),
+        "speed": max(abs(a.speed - b.speed) for a, b in pairs),
+        "power": math.sqrt(np.mean([(a.power - b.power) ** 2 for a, b in pairs]) / np.mean([b.power ** 2 for _, b in pairs])),
+    }
+    predicted = fidelity.estimate(sc)["dynamic"]
+    assert measured["poses"] > 0.1  # the drift is there to be bounded
+    for key, value in measured.items():
+        assert value <= predicted[key], (key, value, predicted[key])
+    choice = fidelity.choose(dataclasses.replace(sc, fidelity="auto", needs=Needs(poses=0.5)))
+    assert choice.level == "slip"

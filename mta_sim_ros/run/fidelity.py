@@ -72,7 +72,9 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     no-slip constraint forces lambda (slip.no_slip_tyre_forces) on the quasi-steady state of the
     scene's inputs at each t (the steady circle of the steering command, MODEL.md, at the speed
     set-point, the governor balancing the resistances); alpha_0 the same at the scene's own
-    initial state (hitch angles that are not steady)."""
+    initial state (hitch angles that are not steady). On a tilted plane each state is taken along
+    the plane's contour, both ways, where gravity pushes the axles sideways the most."""
+    from ..physics import kernel
     from ..physics.slip import SlipModel, no_slip_tyre_forces
     from ..physics.steady import STRAIGHT, SteadyStateError, steady_circle
 
@@ -83,12 +85,25 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     ts = np.arange(0.0, scene.duration + dt / 2, dt)
     vs, alphas = [], []
 
-    def largest(y, command, v_set):
+    def at_heading(y, command, v_set):
         if tr.traction.law == "governor":
             tm = dyn.terms(y, command, v_set)
-            y[L.governor] = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term
+            y[L.governor] = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term + \
+                sum(tm.grade)
         front, rear = no_slip_tyre_forces(model, y, command, v_set)
         return max([abs(front) / model.front_stiffness] + list(np.abs(rear) / model.stiffness))
+
+    def largest(y, command, v_set):
+        """On a tilted plane, the worst of the two headings along its contour (gravity all across)."""
+        if dyn.P[kernel.H.slope] == 0.0:
+            return at_heading(y, command, v_set)
+        contour = math.atan2(dyn.P[kernel.H.gravity_y], dyn.P[kernel.H.gravity_x]) + 0.5 * math.pi
+        out = 0.0
+        for turn in (contour, contour + math.pi):
+            z = y.copy()
+            z[L.heading] += turn
+            out = max(out, at_heading(z, command, v_set))
+        return out
 
     psis = np.clip(np.interp(ts, scene.steering.time, scene.steering.value), -tr.actuator.max_angle,
                    tr.actuator.max_angle)
