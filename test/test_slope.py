@@ -320,3 +320,54 @@ def test_the_chooser_s_predictions_bound_the_side_slope_s_errors():
         assert value <= predicted[key], (key, value, predicted[key])
     choice = fidelity.choose(dataclasses.replace(sc, fidelity="auto", needs=Needs(poses=0.5)))
     assert choice.level == "slip"
+
+
+# -- rollover margin ------------------------------------------------------------------------------
+@pytest.mark.parametrize("track, height", [(1.8, 1.1), (2.4, 0.9)])
+def test_rollover_margin_of_a_cart_across_a_side_slope(track, height):
+    """A cart across a side slope b (heading along the contour): roll = b, pitch = 0 and the margin
+    1 - 2 h tan(b) / t, zero where tan(b) = t / (2 h); up the grade the roll is 0 and the margin 1."""
+    from mta_sim_ros.physics.terrain import Stance
+
+    tip = track / (2 * height)
+    for tan_b in (0.1, 0.3, tip):
+        carts = tuple(dataclasses.replace(c, track_width=track, com_height=height) for c in trains.train(2).carts)
+        st = Stance(dataclasses.replace(trains.train(2), carts=carts, terrain=Plane(0.0, tan_b)))
+        roll, pitch = st.angles(np.array([0.0, 0.0]))
+        assert roll == pytest.approx([math.atan(tan_b)] * 2, abs=1e-12)
+        assert pitch == pytest.approx([0.0, 0.0], abs=1e-12)
+        assert st.margins(np.array([0.0, 0.0])) == pytest.approx([1 - 2 * height * tan_b / track] * 2, abs=1e-12)
+        up = st.margins(np.array([0.5 * math.pi, 0.5 * math.pi]))  # along +y: straight up the slope
+        assert up == pytest.approx([1.0, 1.0], abs=1e-12)
+    assert st.margins(np.array([0.0, 0.0])) == pytest.approx([0.0, 0.0], abs=1e-12)
+
+
+def test_the_run_report_states_roll_pitch_and_the_rollover_margin(tmp_path):
+    """`mta run` on a slope reports the largest roll and pitch and the smallest rollover margin of
+    the carts that give track_width and com_height; a train without them says so."""
+    from mta_sim_ros import cli
+
+    text = open("config/trains/default.yaml", encoding="utf-8").read()
+    text = text.replace("  - name: seeder\n", "  - name: seeder\n    track_width: 3.0\n    com_height: 1.2\n")
+    assert "track_width" in text
+    (tmp_path / "trains").mkdir()
+    (tmp_path / "trains" / "default.yaml").write_text(text, encoding="utf-8")
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    scene = open("config/scenes/side_slope_pass.yaml", encoding="utf-8").read().replace("duration: 40", "duration: 5")
+    (scenes / "s.yaml").write_text(scene, encoding="utf-8")
+    assert cli.main(["run", "--scene", str(scenes / "s.yaml"), "--bag", str(tmp_path / "s.mcap"), "--quiet"]) == 0
+    report = (tmp_path / "s.md").read_text(encoding="utf-8")
+    r = math.sqrt(1 + 0.04 ** 2)  # heading along x: tan(roll) = 0.12 / r, sin(pitch) = -0.04 / r
+    expect = 1 - 2 * 1.2 * (0.12 / r) / (3.0 * math.cos(math.asin(0.04 / r)))
+    row = [line for line in report.splitlines() if "rollover margin" in line][0]
+    assert f"{expect:.3f} (seeder" in row
+    assert "largest roll / pitch" in report
+
+
+def test_track_without_height_is_one_line():
+    text = open("config/trains/default.yaml", encoding="utf-8").read()
+    text = text.replace("  - name: seeder\n", "  - name: seeder\n    track_width: 3.0\n")
+    with pytest.raises(SpecError) as err:
+        loader.load_train_text(text, "t.yaml")
+    assert "\n" not in str(err.value) and "track_width" in str(err.value) and "com_height" in str(err.value)

@@ -52,7 +52,12 @@ __all__ = ["SpecError", "Section", "load_train", "load_train_text", "train_from_
 
 def _cart(s: Section) -> spec.Cart:
     """One cart: l_k > 0, a_k and c_k any finite, m_k > 0, J_k > 0 (MODEL.md, Geometry)."""
-    return spec.Cart(**CART.read(s))
+    cart = spec.Cart(**CART.read(s))
+    if (cart.track_width is None) != (cart.com_height is None):
+        given = "track_width" if cart.com_height is None else "com_height"
+        s.fail(given, getattr(cart, given), f"given with {'com_height' if given == 'track_width' else 'track_width'} "
+               "(the rollover margin needs both), or neither")
+    return cart
 
 
 def _carts(top: Section) -> tuple[spec.Cart, ...]:

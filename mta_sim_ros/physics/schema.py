@@ -169,6 +169,10 @@ CART = Schema("A cart", "carts[k]", "One rigid body of the train (docs/model.md,
     Field("cornering_stiffness", NUMBER, "C_alpha of each axle of this cart (the tractor's two take it each): the "
           "slip level's lateral force -C_alpha x slip angle; the other levels ignore it", "N/rad", STIFFNESS, None,
           default_text="an estimate: physics/slip.py's CORNERING_COEFFICIENT (per rad) x the static load on the axle"),
+    Field("track_width", NUMBER, "the wheels' track, centre to centre across the axle: the rollover margin on a "
+          "slope (docs/terrain.md)", "m", LENGTH, None, default_text="not given: no rollover margin"),
+    Field("com_height", NUMBER, "the centre of mass's height over the ground", "m", LENGTH, None,
+          default_text="not given: no rollover margin", also="given with track_width, or neither"),
 ))
 
 LAW = Field("law", CHOICE, "the traction law", choices=TRACTION_LAWS)

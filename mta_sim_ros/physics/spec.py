@@ -43,6 +43,10 @@ class Cart:
     # value; a trailer one, at B_k). None = the estimate of ``model/slip.py``: CORNERING_COEFFICIENT
     # (per rad) times the static load on that axle. The kinematic and dynamic levels ignore it.
     cornering_stiffness: Optional[float] = None
+    # The wheels' track (centre to centre across the axle) and the centre of mass's height over the
+    # ground, m: the static rollover margin on a slope (terrain.rollover_margin). None: not reported.
+    track_width: Optional[float] = None
+    com_height: Optional[float] = None
 
 
 @dataclass(frozen=True)

@@ -142,6 +142,35 @@ def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:
     return q if q[3] >= 0 else tuple(-v for v in q)
 
 
+class Stance:
+    """Each cart's roll and pitch on the train's plane and its static rollover margin (the carts
+    with track_width and com_height), from the headings alone: with F the plane's frame, a body of
+    heading th has R = F Rz(th), so R[2, 0] = F20 cos th + F21 sin th, R[2, 1] = F21 cos th - F20
+    sin th, R[2, 2] = F22 (``PlaneFrame.roll_pitch``, vectorised)."""
+
+    def __init__(self, train):
+        frame = PlaneFrame.of(train.terrain) if train.terrain is not None else PlaneFrame.of(Plane(0.0, 0.0))
+        self.level = train.terrain is None
+        self.f20, self.f21, self.f22 = frame.x[2], frame.y[2], frame.z[2]
+        self.names = [c.name for c in train.carts]
+        self.measured = np.array([c.track_width is not None for c in train.carts])
+        self.track = np.array([c.track_width or 1.0 for c in train.carts])
+        self.height = np.array([c.com_height or 0.0 for c in train.carts])
+
+    def angles(self, heading) -> tuple[np.ndarray, np.ndarray]:
+        """(roll, pitch) of every cart, rad (REP-103)."""
+        c, s = np.cos(heading), np.sin(heading)
+        r20 = self.f20 * c + self.f21 * s
+        r21 = self.f21 * c - self.f20 * s
+        return np.arctan2(r21, self.f22), -np.arcsin(np.clip(r20, -1.0, 1.0))
+
+    def margins(self, heading) -> np.ndarray:
+        """The static rollover margin of every cart (NaN where track and height are not given)."""
+        roll, pitch = self.angles(heading)
+        m = 1.0 - 2.0 * self.height * np.abs(np.tan(roll)) / (self.track * np.cos(pitch))
+        return np.where(self.measured, m, np.nan)
+
+
 class HeightGrid:
     """A regular grid of heights (rows along y), interpolated by a bicubic spline through every
     node. Built from checked arrays only: :func:`grid_from` checks them."""

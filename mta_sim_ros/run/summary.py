@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 
 @dataclass
 class RunSummary:
@@ -17,6 +19,11 @@ class RunSummary:
     power_max: float = -math.inf
     max_hitch: list = field(default_factory=list)  # rad, largest |hitch angle| per joint
     min_jackknife_margin: float = math.inf
+    stance: object = None  # physics.terrain.Stance of a train on a slope: roll, pitch, rollover margins
+    max_roll: float = 0.0  # rad, largest |roll| of any cart
+    max_pitch: float = 0.0  # rad, largest |pitch| of any cart
+    min_rollover: float = math.inf  # smallest static rollover margin of a cart with track and height
+    min_rollover_cart: str = ""
     _last: object = None
 
     def add(self, out) -> None:
@@ -34,7 +41,19 @@ class RunSummary:
         self.power_max = max(self.power_max, out.power)
         self.max_hitch = [max(m, abs(a)) for m, a in zip(self.max_hitch, out.hitch_angle)]
         self.min_jackknife_margin = min(self.min_jackknife_margin, out.jackknife_margin)
+        if self.stance is not None and not self.stance.level:
+            self._add_stance(out.heading)
         self._last = out
+
+    def _add_stance(self, heading) -> None:
+        roll, pitch = self.stance.angles(heading)
+        self.max_roll = max(self.max_roll, float(np.max(np.abs(roll))))
+        self.max_pitch = max(self.max_pitch, float(np.max(np.abs(pitch))))
+        margins = self.stance.margins(heading)
+        if self.stance.measured.any():
+            k = int(np.nanargmin(margins))
+            if margins[k] < self.min_rollover:
+                self.min_rollover, self.min_rollover_cart = float(margins[k]), self.stance.names[k]
 
     @property
     def duration(self) -> float:
@@ -56,6 +75,12 @@ class RunSummary:
             rows.append((f"largest hitch angle {self.cart_names[k]}-{self.cart_names[k + 1]}", f"{math.degrees(m):.2f} deg"))
         if math.isfinite(self.min_jackknife_margin):
             rows.append(("smallest jackknife margin", f"{math.degrees(self.min_jackknife_margin):.1f} deg"))
+        if self.stance is not None and not self.stance.level:
+            rows.append(("largest roll / pitch of a cart", f"{math.degrees(self.max_roll):.2f} / "
+                                                           f"{math.degrees(self.max_pitch):.2f} deg"))
+            rows.append(("smallest static rollover margin",
+                         f"{self.min_rollover:.3f} ({self.min_rollover_cart}; 1 level, 0 tipping)"
+                         if self.stance.measured.any() else "not computed: no cart gives track_width and com_height"))
         rows.extend((extra or {}).items())
         lines = [f"# {title}", "", "| quantity | value |", "|---|---|"]
         lines += [f"| {k} | {v} |" for k, v in rows]

@@ -26,6 +26,7 @@ from ..messages.topics import FRAME_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, TO
 from ..messages.urdf import robot_model
 from ..physics.loader import load_scene
 from ..physics.spec import INTEGRATOR_METHODS
+from ..physics.terrain import Stance
 from ..run.fidelity import LEVELS, choose
 from ..run.accuracy import settle
 from ..run.simulation import run_scene
@@ -211,7 +212,7 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
     joint_states, odom, robot_description; the latched ones at t = 0)."""
     cart_names = [c.name for c in scene.train.carts]
     tick = 1.0 / options["rate"]
-    summary = RunSummary(tuple(cart_names))
+    summary = RunSummary(tuple(cart_names), stance=Stance(scene.train))
     progress = Progress(scene.duration)
     started = time.perf_counter()
     try:
