@@ -480,3 +480,25 @@ def test_a_running_node_in_a_namespace_publishes_frames_that_are_its_hitch_poses
     assert bag["/unit1/robot_description"][0][1].data == description[0].data
     assert_bag_frames(bag, "/unit1", train)
 
+
+
+def test_on_a_slope_the_session_tilts_odom_and_stamps_the_poses_in_it(tmp_path):
+    """The node's session on the side-slope scene, in a namespace: /tf_static map -> unit3/odom is
+    the plane's tilt (its z axis the plane's normal), hitch_poses and the markers are in unit3/odom."""
+    from scipy.spatial.transform import Rotation
+
+    s, published = session(tmp_path, "/unit3", scene_file=str(REPO / "config/scenes/side_slope_pass.yaml"))
+    static = decoded(published[1])["/tf_static"].transforms
+    tilt = [t for t in static if t.child_frame_id == "unit3/odom"]
+    assert [t.header.frame_id for t in tilt] == ["map"]
+    r = tilt[0].transform.rotation
+    normal = np.array([-0.04, -0.12, 1.0]) / math.sqrt(1 + 0.04 ** 2 + 0.12 ** 2)
+    assert np.allclose(Rotation.from_quat([r.x, r.y, r.z, r.w]).apply([0, 0, 1]), normal, atol=1e-12)
+    for _ in range(60):  # the markers come every few ticks
+        s.tick()
+    msgs = {}
+    for p in published[2:]:
+        msgs.update(p)
+    assert rosbags_decode("geometry_msgs/msg/PoseArray", msgs["hitch_poses"]).header.frame_id == "unit3/odom"
+    markers = rosbags_decode("visualization_msgs/msg/MarkerArray", msgs["markers"]).markers
+    assert markers and {m.header.frame_id for m in markers} == {"unit3/odom"}
