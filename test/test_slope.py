@@ -342,6 +342,25 @@ def test_rollover_margin_of_a_cart_across_a_side_slope(track, height):
     assert st.margins(np.array([0.0, 0.0])) == pytest.approx([0.0, 0.0], abs=1e-12)
 
 
+def test_rollover_margin_on_a_slope_both_ways_is_the_statics_of_the_cart_in_its_own_frame():
+    """On a plane tilted both ways, at any heading: gravity in the cart's frame is R^T (0, 0, -g)
+    with R = PlaneFrame.rotation (the plane's axes, not the roll and pitch formulas). Its normal part
+    is carried by the two wheels, its lateral part tips the cart about the downhill wheels' line:
+    the wheel loads solved from those balances give the margin, the uphill load over half the total."""
+    from mta_sim_ros.physics.terrain import Stance
+
+    track, height, g = 2.2, 1.4, 9.81
+    plane = Plane(0.25, -0.35)
+    carts = tuple(dataclasses.replace(c, track_width=track, com_height=height) for c in trains.train(2).carts)
+    st = Stance(dataclasses.replace(trains.train(2), carts=carts, terrain=plane))
+    frame = PlaneFrame.of(plane)
+    for heading in np.linspace(-math.pi, math.pi, 25):
+        gb = frame.rotation(heading).T @ np.array([0.0, 0.0, -g])  # (along, left, normal) in the cart
+        A = np.array([[1.0, 1.0], [-track / 2, track / 2]])
+        loads = np.linalg.solve(A, [-gb[2], abs(gb[1]) * height])  # per kg: uphill, downhill
+        assert st.margins(np.array([heading, heading])) == pytest.approx([loads[0] / (-gb[2] / 2)] * 2, abs=1e-12)
+
+
 def test_the_run_report_states_roll_pitch_and_the_rollover_margin(tmp_path):
     """`mta run` on a slope reports the largest roll and pitch and the smallest rollover margin of
     the carts that give track_width and com_height; a train without them says so."""

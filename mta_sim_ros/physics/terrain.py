@@ -21,9 +21,12 @@ sin th), n = (-sin th, cos th), w = sqrt(1 + |G|^2):
     pitch = -atan(G . e)          roll = asin((G . n) / w)
 
 Static rollover margin of a cart of track ``t`` and centre-of-mass height ``h`` (over the ground,
-along its normal): the uphill wheels' share of the load over half of it,
+along its normal): the uphill wheels' share of the load over half of it. Gravity in the body frame
+is -g (R20, R21, R22) (R world from body): its normal part g R22 presses the wheels, its lateral
+part g R21 tips the cart about the downhill wheels' line (the body's x axis), and R21 / R22 is
+tan(roll) whatever the pitch, so
 
-    margin = 1 - 2 h |tan(roll)| / (t cos(pitch))
+    margin = 1 - 2 h |tan(roll)| / t
 
 1 on the level, 0 where the uphill wheels lift (on a pure side slope b: tan b = t / (2 h)),
 negative past it.
@@ -167,7 +170,7 @@ class Stance:
     def margins(self, heading) -> np.ndarray:
         """The static rollover margin of every cart (NaN where track and height are not given)."""
         roll, pitch = self.angles(heading)
-        m = 1.0 - 2.0 * self.height * np.abs(np.tan(roll)) / (self.track * np.cos(pitch))
+        m = 1.0 - 2.0 * self.height * np.abs(np.tan(roll)) / self.track
         return np.where(self.measured, m, np.nan)
 
 
@@ -208,9 +211,9 @@ def orientation(heading: float, surface: Surface) -> tuple[float, float]:
     return math.asin(across / w), -math.atan(along)
 
 
-def rollover_margin(track: float, com_height: float, roll: float, pitch: float = 0.0) -> float:
+def rollover_margin(track: float, com_height: float, roll: float) -> float:
     """The static rollover margin (the module docstring): 1 level, 0 at the tipping slope."""
-    return 1.0 - 2.0 * com_height * abs(math.tan(roll)) / (track * math.cos(pitch))
+    return 1.0 - 2.0 * com_height * abs(math.tan(roll)) / track
 
 
 def tipping_side_slope(track: float, com_height: float) -> float:
