@@ -377,11 +377,63 @@ def test_the_run_report_states_roll_pitch_and_the_rollover_margin(tmp_path):
     (scenes / "s.yaml").write_text(scene, encoding="utf-8")
     assert cli.main(["run", "--scene", str(scenes / "s.yaml"), "--bag", str(tmp_path / "s.mcap"), "--quiet"]) == 0
     report = (tmp_path / "s.md").read_text(encoding="utf-8")
-    r = math.sqrt(1 + 0.04 ** 2)  # heading along x: tan(roll) = 0.12 / r, sin(pitch) = -0.04 / r
-    expect = 1 - 2 * 1.2 * (0.12 / r) / (3.0 * math.cos(math.asin(0.04 / r)))
+    r = math.sqrt(1 + 0.04 ** 2)  # heading along x: tan(roll) = 0.12 / r
+    expect = 1 - 2 * 1.2 * (0.12 / r) / 3.0
     row = [line for line in report.splitlines() if "rollover margin" in line][0]
     assert f"{expect:.3f} (seeder" in row
     assert "largest roll / pitch" in report
+
+
+def test_a_sweep_run_measures_roll_pitch_and_the_rollover_margin():
+    """batch.run_metrics (a sweep's run) on a straight pass along the contour of a side slope b:
+    the largest roll is b, the pitch 0, the smallest margin the seeder's 1 - 2 h tan(b) / t; on the
+    level roll and pitch are 0 and the margin 1; a train without track and height has no margin."""
+    from mta_sim_ros.run.batch import run_metrics
+
+    text = open("config/trains/default.yaml", encoding="utf-8").read()
+    measured = text.replace("  - name: seeder\n", "  - name: seeder\n    track_width: 3.0\n    com_height: 1.2\n")
+    scene = {"name": "contour", "train": "t.yaml", "duration": 4.0, "initial": {"speed": 3.0}, "speed": 3.0,
+             "steering": {"maneuver": "straight"}, "integrator": {"method": "rk4", "step": 0.01},
+             "fidelity": "dynamic"}
+    for train_text, terrain, roll, margin in ((measured, 15.0, math.atan(0.15), 1 - 2 * 1.2 * 0.15 / 3.0),
+                                              (measured, 0.0, 0.0, 1.0), (text, 15.0, math.atan(0.15), math.nan)):
+        tr = loader.load_train_text(train_text, "t.yaml")
+        sc = loader.scene_from_data(dict(scene, terrain={"grade_percent": 0, "cross_slope_percent": terrain}),
+                                    "s.yaml", tr)
+        got = run_metrics(sc).metrics
+        assert got["max_roll_deg"] == pytest.approx(math.degrees(roll), abs=1e-9)
+        assert got["max_pitch_deg"] == pytest.approx(0.0, abs=1e-9)
+        assert got["min_rollover_margin"] == pytest.approx(margin, abs=1e-9, nan_ok=True)
+
+
+def test_analyze_reads_the_terrain_from_the_bag_and_draws_the_stance(tmp_path):
+    """`mta analyze` of a run on a slope takes the plane from the bag's recorded scene (no file it
+    names is opened) and draws stance.png (roll, pitch, margins); the poses' headings give the
+    closed-form margin of the air cart along the contour. A level run draws no stance.png."""
+    import shutil
+
+    from mta_sim_ros import analysis, cli
+    from mta_sim_ros.physics.terrain import Stance
+
+    shutil.copy("config/trains/hillside_unit.yaml", tmp_path / "hillside_unit.yaml")
+    text = open("config/scenes/side_slope_pass.yaml", encoding="utf-8").read()
+    text = text.replace("../trains/default.yaml", "hillside_unit.yaml").replace("duration: 40", "duration: 4")
+    (tmp_path / "slope.yaml").write_text(text, encoding="utf-8")
+    (tmp_path / "level.yaml").write_text(text.replace("terrain:", "# terrain:"), encoding="utf-8")
+    for name in ("slope", "level"):
+        assert cli.main(["run", "--scene", str(tmp_path / f"{name}.yaml"), "--bag", str(tmp_path / f"{name}.mcap"),
+                         "--quiet"]) == 0
+    (tmp_path / "hillside_unit.yaml").unlink()  # the bag alone
+    for name in ("slope", "level"):
+        assert cli.main(["analyze", str(tmp_path / f"{name}.mcap"), "-o", str(tmp_path / f"r_{name}")]) == 0
+    assert (tmp_path / "r_slope" / "stance.png").stat().st_size > 10_000
+    assert "stance.png" in (tmp_path / "r_slope" / "summary.md").read_text(encoding="utf-8")
+    assert not (tmp_path / "r_level" / "stance.png").exists()
+    data = analysis.load_bag(tmp_path / "slope.mcap")
+    assert data.train.terrain == Plane(0.04, 0.12)
+    first = Stance(data.train).margins(data.pose_heading.values[:1])[0]
+    tan_roll = 0.12 / math.sqrt(1 + 0.04 ** 2)  # heading along x (the scene's start)
+    assert first[1] == pytest.approx(1 - 2 * 1.9 * tan_roll / 2.8, abs=1e-9)
 
 
 def test_track_without_height_is_one_line():

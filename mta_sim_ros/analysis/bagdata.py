@@ -15,7 +15,7 @@ import numpy as np
 
 from ..bag import read_messages, read_metadata, summary
 from ..messages.topics import RUN_METADATA_TOPIC, RUN_METADATA_TYPE
-from ..node.runlog import RECORD, recorded_scene_name, recorded_train
+from ..node.runlog import RECORD, recorded_scene, recorded_scene_name, recorded_train
 
 # The topics the simulator writes, by the last component of their names.
 KNOWN = ("hitch_poses", "cart_velocities", "traction_power", "steering_angle", "applied_steering",
@@ -148,6 +148,8 @@ def _train_from_metadata(path: Path) -> tuple[Any, str]:
     if not meta:
         raise AnalyzeError(f"{path}: no metadata record '{RECORD}' and no {RUN_METADATA_TOPIC} topic: the bag was "
                            "not written by mta run or of the mta_sim_ros node")
+    if "scene_yaml" in meta:  # the scene's terrain, if any, is on its train (loader.scene_from_data)
+        return recorded_scene(meta, str(path)).train, recorded_scene_name(meta, str(path))
     return recorded_train(meta, str(path)), recorded_scene_name(meta, str(path))
 
 
@@ -179,7 +181,7 @@ def load_bag(path: str | os.PathLike, label: str | None = None) -> BagData:
     Raises:
         BagError: the file is not a readable bag.
         AnalyzeError: no train metadata, or no hitch_poses.
-        InputError: the recorded train text breaks a rule (SpecError).
+        InputError: the recorded train or scene text breaks a rule (SpecError).
     """
     path = Path(path)
     train, scene_name = _train_from_metadata(path)

@@ -174,8 +174,45 @@ def plot_steering(datas, path) -> Path:
     return _time_plot(datas, path, r"Steering angle $\psi_1$", "steering angle (deg, + = left)", curves)
 
 
+def plot_stance(datas, path) -> Path:
+    """Each cart's roll and pitch on the scene's terrain and, for the carts with track_width and
+    com_height, the static rollover margin (physics.terrain.Stance), from the poses' headings."""
+    from matplotlib.figure import Figure
+
+    from ..physics.terrain import Stance
+
+    fig = Figure(figsize=(8.0, 6.4), dpi=FIGURE_DPI, layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    for i, d in enumerate(datas):
+        stance = Stance(d.train)
+        t = d.pose_heading.t - d.t0
+        roll, pitch = stance.angles(d.pose_heading.values)
+        margins = stance.margins(d.pose_heading.values)
+        ls = STYLES[i % len(STYLES)] if len(datas) > 1 else "-"
+        for k, name in enumerate(d.cart_names):
+            top.plot(t, np.degrees(roll[:, k]), color=_color(k), ls=ls, lw=1.3, label=_label(datas, d, f"{name} roll"))
+            top.plot(t, np.degrees(pitch[:, k]), color=_color(k), ls=ls, lw=0.8, alpha=0.6,
+                     label=_label(datas, d, f"{name} pitch"))
+            if stance.measured[k]:
+                bottom.plot(t, margins[:, k], color=_color(k), ls=ls, lw=1.3, label=_label(datas, d, name))
+    top.set_ylabel("roll (thick), pitch (thin), deg")
+    bottom.set_ylabel("static rollover margin")
+    bottom.axhline(0.0, color="0.3", lw=0.8)
+    bottom.set_xlabel("time since start of bag (s)")
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8, loc="best", framealpha=0.85)
+    if not bottom.get_legend_handles_labels()[0]:
+        bottom.text(0.5, 0.5, "no cart gives track_width and com_height", transform=bottom.transAxes,
+                    ha="center", va="center", color="0.4")
+    top.set_title(_title(datas, "Roll, pitch and rollover margin on the terrain"), fontsize=10)
+    return _save(fig, path)
+
+
 def plot_all(datas: Sequence[BagData], folder: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     return [plot_trajectory(datas, folder / "trajectory.png"), plot_speeds(datas, folder / "speeds.png"),
             plot_power(datas, folder / "power.png"), plot_hitch_angles(datas, folder / "hitch_angles.png"),
-            plot_steering(datas, folder / "steering.png")]
+            plot_steering(datas, folder / "steering.png")] + (
+        [plot_stance(datas, folder / "stance.png")] if any(d.train.terrain is not None for d in datas) else [])

@@ -34,6 +34,10 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
                                               the scene steers (NaN: it never steers)
     drawbar pull at A_k                       mean and largest, the model's constraint force
                                               along cart k (kernel.drawbar_pulls)
+    roll, pitch, rollover margin              the largest |roll| and |pitch| of any cart on the scene's
+                                              terrain (0 on the level), the smallest static rollover
+                                              margin of a cart that gives track_width and com_height
+                                              (physics.terrain.Stance; NaN when none does)
     position error                            the run's estimated largest position error
                                               (accuracy.settle: a companion run; with no step
                                               the scene's tolerance chose the step)
@@ -51,6 +55,7 @@ from ..integrate.steppers import FixedStep
 from ..physics import kernel
 from ..physics.outline import box_of, cart_widths
 from ..physics.guards import ModelValidityError, check_state
+from ..physics.terrain import Stance
 from . import offsets, whole
 from .accuracy import settle
 from .simulation import Simulation, speed_setpoints, table_values
@@ -152,7 +157,8 @@ def metric_names(n: int) -> list[str]:
     """The metric columns of a train of n carts, in order."""
     names = ["energy_kWh", "mean_power_kW", "peak_power_kW", "worked_area_ha", "energy_per_ha_kWh",
              "max_hitch_angle_deg", "min_jackknife_margin_deg", "max_offtracking_m", "swept_width_m",
-             "headland_width_m", "distance_m", "position_error_m"]
+             "headland_width_m", "distance_m", "max_roll_deg", "max_pitch_deg", "min_rollover_margin",
+             "position_error_m"]
     for k in range(2, n + 1):
         names += [f"hitch{k}_max_angle_deg", f"hitch{k}_mean_pull_kN", f"hitch{k}_max_pull_kN",
                   f"cart{k}_offtracking_m"]
@@ -182,6 +188,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         "min_jackknife_margin_deg": math.degrees(float(np.min(trace[:, whole.TR_MARGIN]))) if n > 1 else math.nan,
         "distance_m": float(travelled[0]),
     }
+    out.update(stance_metrics(train, th))
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
     walk = offsets.beside_offsets if kernel_compiled() else offsets.beside_offsets.py_func
@@ -226,6 +233,17 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     out["max_offtracking_m"] = max(offtracks, default=math.nan)  # NaN: no axle was ever beside the path
     out["position_error_m"] = math.nan  # the run's, not the trace's: run_metrics sets it (accuracy.settle)
     return {name: out[name] for name in metric_names(n)}
+
+
+def stance_metrics(train, heading: np.ndarray) -> dict:
+    """The largest |roll| and |pitch| (deg) of any cart and the smallest static rollover margin
+    (NaN: no cart gives track_width and com_height) over ``heading``, rows x carts."""
+    stance = Stance(train)
+    roll, pitch = stance.angles(heading)
+    margins = stance.margins(heading)[:, stance.measured]
+    return {"max_roll_deg": math.degrees(float(np.max(np.abs(roll)))),
+            "max_pitch_deg": math.degrees(float(np.max(np.abs(pitch)))),
+            "min_rollover_margin": float(np.min(margins)) if margins.size else math.nan}
 
 
 def kernel_compiled() -> bool:

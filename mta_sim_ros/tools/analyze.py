@@ -13,6 +13,8 @@ The report folder (default ``reports/<bag stem>/``; ``reports/compare_<a>_<b>/``
 * ``speeds.png`` (centre-of-mass speed s'_Ck of each cart), ``power.png`` (traction power F_A1 V, kW),
   ``hitch_angles.png`` (th_{k-1} - th_k, deg), ``steering.png`` (command and the angle the steering
   actuator reached, deg), all against the time since the bag's first pose;
+* ``stance.png``, for a run on a terrain (the recorded scene's): each cart's roll and pitch and,
+  for the carts with track_width and com_height, the static rollover margin (docs/terrain.md);
 * ``summary.md`` and ``summary.json``: the figures of the run (see :func:`analysis.summarize`), and for
   several bags a differences section (see :func:`analysis.compare`);
 * ``csv/<topic>.csv`` (``csv/<bag>/<topic>.csv`` for several bags): every message of every topic,
