@@ -39,6 +39,7 @@ from mta_sim_ros.bag import (
     MessageDefinitionNotFound,
     clock,
     float64,
+    holds_a_message,
     joint_state,
     message_definition,
     pose_array,
@@ -521,6 +522,7 @@ def test_recover_truncated_file(sample, tmp_path, cut):
 
     recovered = tmp_path / "recovered.mcap"
     result = recover(truncated, recovered)
+    assert holds_a_message(truncated) == (result["total_messages"] > 0)
 
     chunks = chunk_table(path)
     complete_chunks = [count for _, end, count in chunks if end <= size]
@@ -562,12 +564,32 @@ def test_flush_makes_open_chunk_recoverable(tmp_path):
     assert result["bytes_dropped"] == 0
 
 
+def test_a_file_whose_only_chunk_fails_its_crc_holds_no_message(tmp_path):
+    """One chunk, one byte of its data changed: recover drops it, and holds_a_message, which
+    answers what recover would find, says no message; the file before the change says yes."""
+    path = tmp_path / "one_chunk.mcap"
+    with BagWriter(path, compression="none") as bag:
+        bag.add_topic("/power", "std_msgs/msg/Float64")
+        for i in range(10):
+            bag.write("/power", float64(i), log_time_ns=i)
+    [(start, end, count)] = chunk_table(path)
+    assert count == 10 and holds_a_message(path)
+    data = bytearray(path.read_bytes())
+    data[end - 20] ^= 0xFF  # inside the last message of the chunk's records
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    assert not holds_a_message(damaged)
+    assert recover(damaged, tmp_path / "damaged_recovered.mcap")["chunks_dropped"] == 1
+    assert not holds_a_message(tmp_path / "missing.mcap")
+
+
 def test_recover_cut_before_first_chunk(sample, tmp_path):
     """Only header and metadata survive: an empty but valid bag."""
     path, _ = sample
     truncated, recovered = tmp_path / "short.mcap", tmp_path / "short_recovered.mcap"
     truncated.write_bytes(path.read_bytes()[:1000])
     result = recover(truncated, recovered)
+    assert not holds_a_message(truncated)
     assert (result["total_messages"], result["chunks"], result["complete"]) == (0, 0, False)
     assert read_metadata(recovered) == METADATA
     assert summary(recovered) == {}

@@ -12,10 +12,15 @@ node is started.
 from __future__ import annotations
 
 import itertools
+import resource
+import signal
 import struct
 import threading
+from pathlib import Path
 
 import pytest
+from child import call
+from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from mta_sim_ros.bag import BagError, BagWriter, read_metadata, recover
@@ -134,6 +139,40 @@ def test_a_bag_no_message_reached_is_removed_and_the_error_says_so(tmp_path):
     assert "disk full (simulated)" in rec.error and f"{path} held no message of this run: removed" in rec.error
     assert not path.exists() and not rec.recording
     rec.close()
+
+
+def record_ticks(folder: str, file_size_limit: str) -> None:
+    """Record 120 ticks (1.2 s of log time: two chunks at FLUSH_SECONDS) into ``folder``, this
+    process's files limited to ``file_size_limit`` bytes (0: none) as a full disk would: every
+    write past it fails (EFBIG; SIGXFSZ ignored, as the node does). Prints the bag's path, then
+    the recorder's error."""
+    if int(file_size_limit):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (int(file_size_limit), resource.RLIM_INFINITY))
+    rec = RunRecorder(folder, TOPICS, {})
+    path = rec.start()
+    write_ticks(rec, 0, 120)
+    rec.close()
+    print(path)
+    print(rec.error)
+
+
+def test_a_chunk_on_disk_whose_index_could_not_be_written_keeps_the_bag(tmp_path):
+    """mcap writes a chunk, then its message index: a disk that fills in between leaves the
+    chunk's messages in the file though the writer's write failed. Such a bag is the run's and
+    is kept (recover gets the chunk's messages); the recorder counts by the file, not by the
+    write. The limit is the end of the first chunk in the same recording made without one."""
+    first_out = call(record_ticks, str(tmp_path / "free"), "0").split("\n")
+    with open(first_out[0], "rb") as f:
+        chunk = make_reader(f).get_summary().chunk_indexes[0]
+    limit = chunk.chunk_start_offset + chunk.chunk_length
+    path, error = call(record_ticks, str(tmp_path / "full"), str(limit)).split("\n")[:2]
+    assert "recording stopped" in error and "File too large" in error and "removed" not in error, error
+    assert Path(path).stat().st_size == limit
+    result = recover(path, tmp_path / "fixed.mcap")
+    in_chunk = sorted(read(Path(first_out[0])), key=lambda m: m[1])[:result["total_messages"]]
+    assert result["chunks"] == 1 and result["total_messages"] > 0
+    assert read(tmp_path / "fixed.mcap") == in_chunk
 
 
 def test_behind_says_when_more_than_the_backlog_waits_for_the_writer(tmp_path):

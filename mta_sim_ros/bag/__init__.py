@@ -5,11 +5,11 @@
 * :mod:`.cdr`: the CDR serializer driven by it (``encode()``, ``MessageEncoder``), no rclpy.
 * :mod:`.template`: ``CdrTemplate``, a message encoded once with slots, filled per message.
 * :mod:`.writer`: :class:`BagWriter` and plain-dict message builders.
-* :mod:`.reader`: ``read_messages()``, ``read_metadata()``, ``summary()`` and
-  ``recover()`` for files cut short by a killed writer.
+* :mod:`.reader`: ``read_messages()``, ``read_metadata()``, ``summary()``, and
+  ``recover()`` and ``holds_a_message()`` for files cut short by a killed writer.
 """
 
-from .reader import PathRefused, output_target, read_messages, read_metadata, recover, summary
+from .reader import PathRefused, holds_a_message, output_target, read_messages, read_metadata, recover, summary
 from .schemas import BagError, MessageDefinitionNotFound, message_definition, schema_name
 from .writer import (
     DEFAULT_CHUNK_SIZE,
@@ -34,6 +34,7 @@ __all__ = [
     "clock",
     "float64",
     "header",
+    "holds_a_message",
     "joint_state",
     "message_definition",
     "output_target",

@@ -219,6 +219,36 @@ class _Copier:
         self.last_log_time = max(message.log_time, self.last_log_time or 0)
 
 
+def holds_a_message(path: PathLike) -> bool:
+    """Whether the file at ``path``, complete or cut short, holds a message :func:`recover`
+    would copy: one loose or in a complete, valid chunk, read from the start up to the first
+    such message (so a long bag costs one chunk). False for a file that cannot be read."""
+    try:
+        with open(path, "rb") as f:
+            records = StreamReader(_ExactReader(f), emit_chunks=True).records
+            for record in records:
+                if isinstance(record, DataEnd):
+                    return False
+                if isinstance(record, Chunk):
+                    if _chunk_holds_a_message(record):
+                        return True
+                elif isinstance(record, Message):
+                    return True
+    except (OSError, _TruncatedTail, McapError, ValueError, struct.error):
+        return False
+    return False
+
+
+def _chunk_holds_a_message(chunk: Chunk) -> bool:
+    """Whether ``chunk`` is one :func:`recover` copies and holds a message."""
+    try:
+        data = _chunk_data(chunk)
+        return data is not None and any(isinstance(r, Message) for r in breakup_chunk(
+            replace(chunk, compression="", data=data), validate_crc=True))
+    except Exception:  # noqa: BLE001 - bad CRC or undecompressable data: recover skips it too
+        return False
+
+
 class PathRefused(BagError):
     """:func:`recover` refused its paths before reading or writing anything."""
 

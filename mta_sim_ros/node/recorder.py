@@ -32,7 +32,7 @@ import time
 import uuid
 from pathlib import Path
 
-from ..bag import DEFAULT_QOS_YAML, BagError, BagWriter
+from ..bag import DEFAULT_QOS_YAML, BagError, BagWriter, holds_a_message
 
 #: How often the background thread looks for messages to write while it finds none, s.
 POLL_SECONDS = 0.02
@@ -196,7 +196,10 @@ class RunRecorder:
                 writer.close()
             except BagError:
                 pass  # already reported; the writer aborted and keeps what it had written
-        kept = writer is not None and writer.messages_in_file > 0
+        # The writer's count lags the file by the chunk whose write failed after it reached the
+        # disk (mcap writes a chunk, then its message index: the disk can fill in between), so
+        # a bag is removed only once the file itself shows that recover() would find nothing.
+        kept = writer is not None and (writer.messages_in_file > 0 or holds_a_message(writer.path))
         self.error = f"recording stopped: {err}" + ("" if kept else self._remove_empty_bag())
 
     def _remove_empty_bag(self) -> str:
