@@ -68,6 +68,8 @@ def _carts(top: Section) -> tuple[spec.Cart, ...]:
             if other.name == cart.name:
                 s.fail("name", cart.name, f"unique: carts[{j}] has it too")
         carts.append(cart)
+    if carts and carts[-1].hitch_height is not None:
+        s.fail("hitch_height", carts[-1].hitch_height, "not given on the last cart: no hitch behind it")
     return tuple(carts)
 
 

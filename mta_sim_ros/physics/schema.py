@@ -173,6 +173,9 @@ CART = Schema("A cart", "carts[k]", "One rigid body of the train (docs/model.md,
           "slope (docs/terrain.md)", "m", LENGTH, None, default_text="not given: no rollover margin"),
     Field("com_height", NUMBER, "the centre of mass's height over the ground", "m", LENGTH, None,
           default_text="not given: no rollover margin", also="given with track_width, or neither"),
+    Field("hitch_height", NUMBER, "the height over the ground of the hitch A_{k+1} behind this cart, the drawbar "
+          "pull's line of action: the tractor's sets its longitudinal tip margin (docs/terrain.md)", "m", LENGTH, None,
+          default_text="not given: no tip margin for a tractor that tows", also="not on the last cart"),
 ))
 
 LAW = Field("law", CHOICE, "the traction law", choices=TRACTION_LAWS)

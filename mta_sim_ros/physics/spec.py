@@ -47,6 +47,9 @@ class Cart:
     # ground, m: the static rollover margin on a slope (terrain.rollover_margin). None: not reported.
     track_width: Optional[float] = None
     com_height: Optional[float] = None
+    # The height over the ground of the hitch A_{k+1} behind this cart, m: the drawbar pull's line
+    # of action. The tractor's sets its longitudinal tip margin (terrain.tip_margin). None: not given.
+    hitch_height: Optional[float] = None
 
 
 @dataclass(frozen=True)

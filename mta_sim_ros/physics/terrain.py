@@ -30,6 +30,18 @@ tan(roll) whatever the pitch, so
 
 1 on the level, 0 where the uphill wheels lift (on a pure side slope b: tan b = t / (2 h)),
 negative past it.
+
+Longitudinal tip margin of the tractor (wheelbase L, centre of mass c ahead of the rear axle and h
+over the ground, weight m g) towing with the drawbar pull P = H_2 . e_1 (the force on the drawbar
+along the tractor's axis, kernel.drawbar_pulls) at the hitch height h_d: its front axle's load
+over the load it has standing on the level, from the moments about the rear wheels' contact line
+(gravity along the body -g R20 at h, across it g R22 at c, the pull parallel to the ground at h_d):
+
+    N_f L = m g (R22 c - R20 h) - P h_d        tip margin = R22 - R20 h / c - P h_d / (m g c)
+
+1 standing on the level, 0 where the front wheels lift (a lone tractor heading up a grade a:
+tan a = c / h). Static: the tractor's own acceleration (m V' h more on the rear axle while it
+speeds up) and the wheels' rolling moments are left out; the pull carries the carts' inertia.
 """
 from __future__ import annotations
 
@@ -147,7 +159,8 @@ def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:
 
 class Stance:
     """Each cart's roll and pitch on the train's plane and its static rollover margin (the carts
-    with track_width and com_height), from the headings alone: with F the plane's frame, a body of
+    with track_width and com_height), from the headings alone, and the tractor's tip margin with
+    the drawbar pull besides: with F the plane's frame, a body of
     heading th has R = F Rz(th), so R[2, 0] = F20 cos th + F21 sin th, R[2, 1] = F21 cos th - F20
     sin th, R[2, 2] = F22 (``PlaneFrame.roll_pitch``, vectorised)."""
 
@@ -159,6 +172,12 @@ class Stance:
         self.measured = np.array([c.track_width is not None for c in train.carts])
         self.track = np.array([c.track_width or 1.0 for c in train.carts])
         self.height = np.array([c.com_height or 0.0 for c in train.carts])
+        tractor = train.carts[0]
+        tows = len(train.carts) > 1
+        known = tractor.com_height is not None and tractor.com_offset > 0 and (tractor.hitch_height or not tows)
+        #: (c, h, h_d, m g) of the tractor's tip margin, or None where it is not known (``tip_margins``)
+        self.tip = (tractor.com_offset, tractor.com_height, tractor.hitch_height or 0.0,
+                    tractor.mass * train.gravity) if known else None
 
     def angles(self, heading) -> tuple[np.ndarray, np.ndarray]:
         """(roll, pitch) of every cart, rad (REP-103)."""
@@ -172,6 +191,17 @@ class Stance:
         roll, pitch = self.angles(heading)
         m = 1.0 - 2.0 * self.height * np.abs(np.tan(roll)) / self.track
         return np.where(self.measured, m, np.nan)
+
+    def tip_margins(self, heading, pull) -> np.ndarray:
+        """The tractor's longitudinal tip margin (``tip_margin``) at each row of ``heading`` (rows x
+        carts) with the drawbar pull ``pull`` along its axis (rows, N); NaN where it is not known: the
+        tractor gives no com_height, or tows and gives no hitch_height, or its centre of mass is not
+        ahead of its rear axle (c <= 0), or the pull is NaN (a level without constraint forces)."""
+        th = np.asarray(heading)[..., 0]
+        if self.tip is None:
+            return np.full(np.shape(th), np.nan)
+        c, s = np.cos(th), np.sin(th)
+        return tip_margin(*self.tip, self.f20 * c + self.f21 * s, self.f22, np.asarray(pull, dtype=float))
 
 
 class HeightGrid:
@@ -214,6 +244,12 @@ def orientation(heading: float, surface: Surface) -> tuple[float, float]:
 def rollover_margin(track: float, com_height: float, roll: float) -> float:
     """The static rollover margin (the module docstring): 1 level, 0 at the tipping slope."""
     return 1.0 - 2.0 * com_height * abs(math.tan(roll)) / track
+
+
+def tip_margin(com_offset: float, com_height: float, hitch_height: float, weight: float, r20, r22, pull):
+    """The tractor's longitudinal tip margin (the module docstring) from R20, R22 of its rotation,
+    the pull along its axis, N, and its weight m g, N (numbers or arrays)."""
+    return r22 - r20 * com_height / com_offset - pull * hitch_height / (weight * com_offset)
 
 
 def tipping_side_slope(track: float, com_height: float) -> float:

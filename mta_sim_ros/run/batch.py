@@ -38,6 +38,10 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
                                               terrain (0 on the level), the smallest static rollover
                                               margin of a cart that gives track_width and com_height
                                               (physics.terrain.Stance; NaN when none does)
+    tip margin                                the tractor's smallest longitudinal tip margin with
+                                              the drawbar pull (terrain.tip_margin; NaN when its
+                                              com_height, or the hitch_height of a tractor that
+                                              tows, is not given, or the level has no pulls)
     position error                            the run's estimated largest position error
                                               (accuracy.settle: a companion run; with no step
                                               the scene's tolerance chose the step)
@@ -158,7 +162,7 @@ def metric_names(n: int) -> list[str]:
     names = ["energy_kWh", "mean_power_kW", "peak_power_kW", "worked_area_ha", "energy_per_ha_kWh",
              "max_hitch_angle_deg", "min_jackknife_margin_deg", "max_offtracking_m", "swept_width_m",
              "headland_width_m", "distance_m", "max_roll_deg", "max_pitch_deg", "min_rollover_margin",
-             "position_error_m"]
+             "min_tip_margin", "position_error_m"]
     for k in range(2, n + 1):
         names += [f"hitch{k}_max_angle_deg", f"hitch{k}_mean_pull_kN", f"hitch{k}_max_pull_kN",
                   f"cart{k}_offtracking_m"]
@@ -188,7 +192,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         "min_jackknife_margin_deg": math.degrees(float(np.min(trace[:, whole.TR_MARGIN]))) if n > 1 else math.nan,
         "distance_m": float(travelled[0]),
     }
-    out.update(stance_metrics(train, th))
+    out.update(stance_metrics(train, th, cart[:, 0, whole.TR_PULL]))
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
     walk = offsets.beside_offsets if kernel_compiled() else offsets.beside_offsets.py_func
@@ -235,15 +239,18 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     return {name: out[name] for name in metric_names(n)}
 
 
-def stance_metrics(train, heading: np.ndarray) -> dict:
-    """The largest |roll| and |pitch| (deg) of any cart and the smallest static rollover margin
-    (NaN: no cart gives track_width and com_height) over ``heading``, rows x carts."""
+def stance_metrics(train, heading: np.ndarray, pull: np.ndarray) -> dict:
+    """The largest |roll| and |pitch| (deg) of any cart, the smallest static rollover margin
+    (NaN: no cart gives track_width and com_height) over ``heading``, rows x carts, and the
+    tractor's smallest tip margin with the drawbar pull ``pull`` along its axis (rows; NaN: not
+    known, Stance.tip_margins)."""
     stance = Stance(train)
     roll, pitch = stance.angles(heading)
     margins = stance.margins(heading)[:, stance.measured]
     return {"max_roll_deg": math.degrees(float(np.max(np.abs(roll)))),
             "max_pitch_deg": math.degrees(float(np.max(np.abs(pitch)))),
-            "min_rollover_margin": float(np.min(margins)) if margins.size else math.nan}
+            "min_rollover_margin": float(np.min(margins)) if margins.size else math.nan,
+            "min_tip_margin": float(np.min(stance.tip_margins(heading, pull)))}
 
 
 def kernel_compiled() -> bool:

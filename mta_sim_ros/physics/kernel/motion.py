@@ -241,7 +241,8 @@ def drawbar_pulls(P, y, acceleration, cart):
         H_k . e_k = H_{k+1} . e_k + F_Bk + m_k a_e                          (Newton along e_k)
         H_k . n_k = (J_k th''_k + c_k m_k a_n - a_k H_{k+1} . n_k) / l_k   (Euler about C_k, N_k eliminated)
 
-    ``cart`` holds the REC and VB, VT columns of ``outputs`` (``acceleration`` its dy[n + 3]); cart[0, PULL] is 0 (the traction
+    ``cart`` holds the REC and VB, VT columns of ``outputs`` (``acceleration`` its dy[n + 3]); cart[0, PULL] is H_2 . e_1,
+    the drawbar's load along the tractor's own axis (its tip margin, terrain.tip_margin; the traction
     at A_1 is ``outputs``' own). On a straight line at constant speed the pull at A_k is the sum of
     the resistances behind it (test_sweep_metrics)."""
     n = int(P[H.n])
@@ -267,7 +268,7 @@ def drawbar_pulls(P, y, acceleration, cart):
         h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * (hx * nx + hy * ny)) / P[b + C.length]
         cart[k, PULL] = h_e
         hx, hy = h_e * ex + h_n * nx, h_e * ey + h_n * ny
-    cart[0, PULL] = 0.0
+    cart[0, PULL] = hx * math.cos(y[2]) + hy * math.sin(y[2])  # H_2 . e_1 (0 for a lone tractor)
 
 
 @jitable
