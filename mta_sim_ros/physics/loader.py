@@ -134,7 +134,7 @@ def _train(data: dict, source: str) -> spec.Train:
         rolling=tuple(_rolling(s, names) for s in forces.sections("rolling", ROLLING.keys)),
         draft=tuple(_draft(s, names) for s in forces.sections("draft", DRAFT.keys)),
         actuator=_actuator(top),
-        **TRAIN.read(top, "gravity", "smoothing_speed"),
+        **TRAIN.read(top, "gravity", "smoothing_speed", "lateral_friction"),
         implement=_implement(top, names),
         fuel=_fuel(top),
         source=source,

@@ -263,6 +263,9 @@ TRAIN = Schema("Train file", "top level", "The mechanical scheme (a list of cart
     Field("smoothing_speed", NUMBER, "resistances are smoothed through V = 0 with tanh(v / smoothing_speed)", "m/s",
           SMOOTHING, spec.Train.smoothing_speed),
     Field("gravity", NUMBER, "g", "m/s^2", GRAVITY, spec.GRAVITY),
+    Field("lateral_friction", NUMBER, "mu, the tyres' lateral friction on the field's soil: the most lateral "
+          "force an axle takes per newton of its normal load (the grip margin, docs/terrain.md)", "", Rule(
+              "in (0, 2]", lambda x: 0 < x <= 2.0), None, default_text="not given: no grip margin"),
     Field("implement", MAPPING, "the working tool of field operations", default=None, schema=IMPLEMENT,
           default_text="none: the train plans and works no field"),
     Field("fuel", MAPPING, "fuel per traction energy", default=None, schema=FUEL,

@@ -142,6 +142,9 @@ class Train:
     gravity: float = GRAVITY
     # Resistances are smoothed through V = 0 with tanh(v / smoothing_speed), m/s.
     smoothing_speed: float = 0.05
+    # mu of the tyres' lateral friction on the soil: the grip margin of each no-slip axle
+    # (loads.grip_margins). None: not given, no grip margin.
+    lateral_friction: Optional[float] = None
     implement: Optional[Implement] = None  # the working tool of field operations (None: no field work)
     fuel: Optional[Fuel] = None  # fuel per traction energy (None: fuel not reported)
     source: str = ""  # the file it came from, for messages

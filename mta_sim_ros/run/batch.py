@@ -42,6 +42,9 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
                                               the drawbar pull (terrain.tip_margin; NaN when its
                                               com_height, or the hitch_height of a tractor that
                                               tows, is not given, or the level has no pulls)
+    grip margin                               the smallest of any no-slip axle: 1 - its lateral
+                                              force over mu x its static load (physics.loads;
+                                              NaN without lateral_friction, or at the slip level)
     position error                            the run's estimated largest position error
                                               (accuracy.settle: a companion run; with no step
                                               the scene's tolerance chose the step)
@@ -59,6 +62,7 @@ from ..integrate.steppers import FixedStep
 from ..physics import kernel
 from ..physics.outline import box_of, cart_widths
 from ..physics.guards import ModelValidityError, check_state
+from ..physics.loads import grip_margins
 from ..physics.terrain import Stance
 from . import offsets, whole
 from .accuracy import settle
@@ -127,13 +131,13 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
 def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Exception | None]:
     """The run through Simulation.advance, one trace row a tick from its Outputs."""
     def row(out, i):
-        trace[i, :whole.TRACE_HEAD] = out.traction, out.speed, out.jackknife_margin, out.steering
+        trace[i, :whole.TRACE_HEAD] = out.traction, out.speed, out.jackknife_margin, out.steering, math.nan
         cart = trace[i, whole.TRACE_HEAD:].reshape(-1, whole.TRACE_CART)
         cart[:, whole.TR_BX], cart[:, whole.TR_BY] = out.axle[:, 0], out.axle[:, 1]
         cart[:, whole.TR_HEADING] = out.heading
         cart[0, whole.TR_PHI] = 0.0
         cart[1:, whole.TR_PHI] = out.hitch_angle
-        cart[:, whole.TR_PULL] = math.nan  # the constraint forces come from the kernel's outputs only
+        cart[:, whole.TR_PULL] = cart[:, whole.TR_LAT] = math.nan  # constraint forces: the kernel's outputs only
 
     row(sim.outputs(), 0)
     for i in range(commands.shape[0]):
@@ -162,7 +166,7 @@ def metric_names(n: int) -> list[str]:
     names = ["energy_kWh", "mean_power_kW", "peak_power_kW", "worked_area_ha", "energy_per_ha_kWh",
              "max_hitch_angle_deg", "min_jackknife_margin_deg", "max_offtracking_m", "swept_width_m",
              "headland_width_m", "distance_m", "max_roll_deg", "max_pitch_deg", "min_rollover_margin",
-             "min_tip_margin", "position_error_m"]
+             "min_tip_margin", "min_grip_margin", "position_error_m"]
     for k in range(2, n + 1):
         names += [f"hitch{k}_max_angle_deg", f"hitch{k}_mean_pull_kN", f"hitch{k}_max_pull_kN",
                   f"cart{k}_offtracking_m"]
@@ -193,6 +197,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         "distance_m": float(travelled[0]),
     }
     out.update(stance_metrics(train, th, cart[:, 0, whole.TR_PULL]))
+    out["min_grip_margin"] = float(np.min(grip_margins(train, trace[:, whole.TR_FRONT_LAT], cart[:, :, whole.TR_LAT])))
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
     walk = offsets.beside_offsets if kernel_compiled() else offsets.beside_offsets.py_func

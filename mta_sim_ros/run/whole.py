@@ -6,14 +6,14 @@ import numpy as np
 
 from ..integrate.rk import advance_in, workspace
 from ..jit import entry, jitable
-from ..physics.kernel.base import BX, BY, KINEMATIC, MARGIN, OUT, PHI, PULL, SCALARS, TRACTION, H
+from ..physics.kernel.base import BX, BY, FRONT_LAT, KINEMATIC, LAT, MARGIN, OUT, PHI, PULL, SCALARS, TRACTION, H
 from ..physics.kernel.motion import clear, drawbar_pulls, model_rhs, outputs, switches
 
 #: columns of a run's trace row: the scalars, then TRACE_CART per cart
-TR_TRACTION, TR_SPEED, TR_MARGIN, TR_STEERING = range(4)
-TRACE_HEAD = 4
-TR_BX, TR_BY, TR_HEADING, TR_PHI, TR_PULL = range(5)
-TRACE_CART = 5
+TR_TRACTION, TR_SPEED, TR_MARGIN, TR_STEERING, TR_FRONT_LAT = range(5)
+TRACE_HEAD = 5
+TR_BX, TR_BY, TR_HEADING, TR_PHI, TR_PULL, TR_LAT = range(6)
+TRACE_CART = 6
 
 
 @jitable
@@ -21,12 +21,13 @@ def trace_row(P, y, command, law_input, max_rate, cart, sc, dy, row):
     """The outputs of a run's trace at state y into ``row`` (TRACE_HEAD + TRACE_CART n)."""
     n = int(P[H.n])
     outputs(P, y, command, law_input, max_rate, cart, sc, dy)
-    drawbar_pulls(P, y, dy[n + 3], cart)
+    drawbar_pulls(P, y, dy[n + 3], cart, sc)
     row[TR_TRACTION], row[TR_SPEED], row[TR_MARGIN], row[TR_STEERING] = sc[TRACTION], y[n + 3], sc[MARGIN], y[n + 2]
+    row[TR_FRONT_LAT] = sc[FRONT_LAT]
     for k in range(n):
         j = TRACE_HEAD + TRACE_CART * k
         row[j + TR_BX], row[j + TR_BY], row[j + TR_HEADING] = cart[k, BX], cart[k, BY], y[2 + k]
-        row[j + TR_PHI], row[j + TR_PULL] = cart[k, PHI], cart[k, PULL]
+        row[j + TR_PHI], row[j + TR_PULL], row[j + TR_LAT] = cart[k, PHI], cart[k, PULL], cart[k, LAT]
 
 
 @entry

@@ -43,8 +43,8 @@ REQUIRED = ("run", "scheme", "scene", "train_hash", "verdict", "reason")
 #: numeric columns that are neither factors nor metrics
 NOT_METRICS = ("run", "scheme", "simulated_s", "seed")
 #: metrics where more is better: report.make_report maximizes them unless told otherwise
-MAXIMIZED = ("min_jackknife_margin_deg", "min_rollover_margin", "min_tip_margin", "worked_area_ha", "distance_m",
-             "coverage_pct", "field_efficiency_pct", "working_distance_km")
+MAXIMIZED = ("min_jackknife_margin_deg", "min_rollover_margin", "min_tip_margin", "min_grip_margin", "worked_area_ha",
+             "distance_m", "coverage_pct", "field_efficiency_pct", "working_distance_km")
 #: what a report compares when it is not told: per scene, the first of these that vary over its ok
 #: runs (then those defined but constant): a field worked whole, and a manoeuvre scene
 FIELD_OBJECTIVES = ("total_time_h", "fuel_l", "skipped_area_ha", "energy_kWh", "double_worked_ha")

@@ -144,13 +144,13 @@ def no_mode():
 KAPT, KAPB, KAPC, PSI, RES, KAPT_DOT, KAPB_DOT, GRADE = range(8)
 REC = 8
 
-#: the drawbar pull at A_k (written by ``drawbar_pulls`` only, after ``outputs``: the node's tick,
-#: which publishes no pull, does not compute it)
-AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT, PULL = range(REC, REC + 11)
-OUT = REC + 11
-#: scalar outputs
-REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN, STEERING_RATE, GRADE_POWER = range(8)
-SCALARS = 8
+#: the drawbar pull at A_k and the lateral force of the axle at B_k (written by ``drawbar_pulls``
+#: only, after ``outputs``: the node's tick, which publishes neither, does not compute them)
+AX, AY, BX, BY, CX, CY, PHI, VC, VB, VT, PULL, LAT = range(REC, REC + 12)
+OUT = REC + 12
+#: scalar outputs (FRONT_LAT: the lateral force of the tractor's front axle, ``drawbar_pulls``)
+REAR_X, REAR_Y, TRACTION, MASS, RES_POWER, MARGIN, STEERING_RATE, GRADE_POWER, FRONT_LAT = range(9)
+SCALARS = 9
 
 #: most switching functions ``switches`` writes beyond the per-cart ones
 FORCE_SWITCHES = 3

@@ -49,13 +49,14 @@ def outputs_of(P, y, command, v_set, max_rate):
 
 @entry
 def pulls_of(P, y, command, v_set, max_rate):
-    """(cart n x OUT, scalars) of ``outputs`` with the drawbar pulls' column (``drawbar_pulls``)."""
+    """(cart n x OUT, scalars) of ``outputs`` with the drawbar pulls' and the axles' lateral forces
+    (``drawbar_pulls``)."""
     n = int(P[H.n])
     cart = np.empty((n, OUT))
     sc = np.empty(SCALARS)
     dy = np.empty(y.shape[0])
     outputs(P, y, command, v_set, max_rate, cart, sc, dy)
-    drawbar_pulls(P, y, dy[n + 3], cart)
+    drawbar_pulls(P, y, dy[n + 3], cart, sc)
     return cart, sc
 
 

@@ -19,6 +19,7 @@ from .base import (
     CART_SIZE,
     CX,
     CY,
+    FRONT_LAT,
     GOVERNOR,
     GRADE,
     GRADE_POWER,
@@ -29,6 +30,7 @@ from .base import (
     KAPT,
     KAPT_DOT,
     KINEMATIC,
+    LAT,
     MARGIN,
     MASS,
     NATURAL,
@@ -211,7 +213,7 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
         cart[k, CX], cart[k, CY] = bx + P[b + C.com_offset] * ex, by + P[b + C.com_offset] * ey
         ax, ay = bx - P[b + C.hitch_offset] * ex, by - P[b + C.hitch_offset] * ey
         cart[k, VC], cart[k, VB], cart[k, VT] = cart[k, KAPC] * V, cart[k, KAPB] * V, cart[k, KAPT] * V
-        cart[k, PULL] = math.nan  # not computed here (drawbar_pulls)
+        cart[k, PULL] = cart[k, LAT] = math.nan  # not computed here (drawbar_pulls)
         res_power += cart[k, RES] * cart[k, VB]
         grade_power += cart[k, GRADE] * V
         if k:
@@ -224,32 +226,42 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
             cart[k, PHI] = 0.0
     sc[REAR_X], sc[REAR_Y] = ax, ay
     sc[TRACTION], sc[MASS], sc[RES_POWER], sc[MARGIN] = traction, mass, res_power, best
-    sc[STEERING_RATE], sc[GRADE_POWER] = dy[n + 2], grade_power
+    sc[STEERING_RATE], sc[GRADE_POWER], sc[FRONT_LAT] = dy[n + 2], grade_power, math.nan
     return traction
 
 
 @jitable
-def drawbar_pulls(P, y, acceleration, cart):
-    """The pull at each hitch A_k (k >= 2) along the towed cart's axis e_k, N, into cart[k, PULL]:
-    the constraint force of the model, by Newton-Euler on each towed cart from the last forward.
-    Cart k (unit axis e_k, normal n_k, th_k) carries the hitch force H_k at A_k, -H_{k+1} at A_{k+1},
-    the resistance -F_Bk e_k, the tyres' lateral force N_k n_k at B_k and, on a tilted plane, gravity's
-    component m_k g_p in the plane at C_k (taken into a_e, a_n below). With the centre of mass
-    C_k = B_k + c_k e_k, its acceleration a_e = d(s'_Bk)/dt - c_k th'_k^2, a_n = s'_Bk th'_k + c_k th''_k,
-    where d(s'_Bk)/dt = kapB' V + kapB V' and th''_k = kapT' V + kapT V' (the chain's rates, ``rhs``):
+def drawbar_pulls(P, y, acceleration, cart, sc):
+    """The pull at each hitch A_k (k >= 2) along the towed cart's axis e_k, N, into cart[k, PULL],
+    and the lateral force N_k n_k of each axle at B_k into cart[k, LAT] (the tractor's front axle's,
+    across its wheels, into sc[FRONT_LAT]): the constraint forces of the model, by Newton-Euler on
+    each towed cart from the last forward, then on the tractor. Cart k (unit axis e_k, normal n_k,
+    th_k) carries the hitch force H_k at A_k, -H_{k+1} at A_{k+1}, the resistance -F_Bk e_k, the
+    tyres' lateral force N_k n_k at B_k and, on a tilted plane, gravity's component m_k g_p in the
+    plane at C_k (taken into a_e, a_n below). With the centre of mass C_k = B_k + c_k e_k, its
+    acceleration a_e = d(s'_Bk)/dt - c_k th'_k^2, a_n = s'_Bk th'_k + c_k th''_k, where
+    d(s'_Bk)/dt = kapB' V + kapB V' and th''_k = kapT' V + kapT V' (the chain's rates, ``rhs``):
 
         H_k . e_k = H_{k+1} . e_k + F_Bk + m_k a_e                          (Newton along e_k)
         H_k . n_k = (J_k th''_k + c_k m_k a_n - a_k H_{k+1} . n_k) / l_k   (Euler about C_k, N_k eliminated)
+        N_k = m_k a_n - H_k . n_k + H_{k+1} . n_k                          (Newton along n_k)
 
-    ``cart`` holds the REC and VB, VT columns of ``outputs`` (``acceleration`` its dy[n + 3]); cart[0, PULL] is H_2 . e_1,
-    the drawbar's load along the tractor's own axis (its tip margin, terrain.tip_margin; the traction
-    at A_1 is ``outputs``' own). On a straight line at constant speed the pull at A_k is the sum of
-    the resistances behind it (test_sweep_metrics)."""
+    The tractor (traction F along its course th_1 + psi_1 at A_1, the front axle's F_f across it)
+    has S = F sin(psi_1) + F_f cos(psi_1), the front forces across e_1, and N_1 from Newton along
+    n_1 and Euler about C_1:
+
+        S + N_1 = m_1 a_n + H_2 . n_1 =: R1,   (l_1 - c_1) S - c_1 N_1 = J_1 th''_1 - (a_1 + c_1) H_2 . n_1 =: R2
+        S = (c_1 R1 + R2) / l_1
+
+    ``cart`` holds the REC and VB, VT columns of ``outputs`` (``acceleration`` its dy[n + 3], ``sc`` its
+    TRACTION); cart[0, PULL] is H_2 . e_1, the drawbar's load along the tractor's own axis (its tip
+    margin, terrain.tip_margin; the traction at A_1 is ``outputs``' own). On a straight line at
+    constant speed the pull at A_k is the sum of the resistances behind it (test_sweep_metrics)."""
     n = int(P[H.n])
     V = y[n + 3]
     sloped = P[H.slope] != 0.0
     hx, hy = 0.0, 0.0  # H_{k+1}, world frame
-    for k in range(n - 1, 0, -1):
+    for k in range(n - 1, -1, -1):
         b = HEAD_SIZE + CART_SIZE * k
         th = y[2 + k]
         ex, ey = math.cos(th), math.sin(th)
@@ -264,11 +276,21 @@ def drawbar_pulls(P, y, acceleration, cart):
         if sloped:  # gravity in the plane at C_k: as if the cart accelerated by -g_p
             a_e -= P[H.gravity_x] * ex + P[H.gravity_y] * ey
             a_n -= P[H.gravity_x] * nx + P[H.gravity_y] * ny
+        behind_n = hx * nx + hy * ny  # H_{k+1} . n_k
+        if k == 0:
+            r1 = m * a_n + behind_n
+            r2 = P[b + C.inertia] * rate_dot - (P[b + C.hitch_offset] + com) * behind_n
+            across = (com * r1 + r2) / P[b + C.length]
+            psi = y[n + 2]
+            cart[0, LAT] = r1 - across
+            sc[FRONT_LAT] = (across - sc[TRACTION] * math.sin(psi)) / math.cos(psi)
+            cart[0, PULL] = hx * ex + hy * ey  # H_2 . e_1 (0 for a lone tractor)
+            break
         h_e = hx * ex + hy * ey + cart[k, RES] + m * a_e
-        h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * (hx * nx + hy * ny)) / P[b + C.length]
+        h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * behind_n) / P[b + C.length]
         cart[k, PULL] = h_e
+        cart[k, LAT] = m * a_n - h_n + behind_n
         hx, hy = h_e * ex + h_n * nx, h_e * ey + h_n * ny
-    cart[0, PULL] = hx * math.cos(y[2]) + hy * math.sin(y[2])  # H_2 . e_1 (0 for a lone tractor)
 
 
 @jitable
