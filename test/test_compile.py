@@ -13,8 +13,8 @@ import pytest
 from mta_sim_ros import jit
 
 REPO = Path(__file__).resolve().parents[1]
-#: entry points only the tests call (test_sweep_metrics: the drawbar pulls of one state)
-TESTS_ONLY = {"pulls_of"}
+#: entry points only the tests call
+TESTS_ONLY: set[str] = set()
 
 
 def entry_points() -> set[str]:

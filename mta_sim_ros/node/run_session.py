@@ -61,6 +61,7 @@ from ..messages.urdf import frame_prefix, robot_model
 from ..physics.guards import ModelValidityError
 from ..physics.loader import SpecError, load_scene
 from ..run.companion import Companion, budget_steps, tick_seconds
+from ..run.margins import MarginGauge
 from ..run.simulation import Simulation
 from ..validate import InputError, show
 from .commands import HeldCommands
@@ -125,6 +126,7 @@ class RunSession:
             self.scene = load_scene(resolve_config_path(self.cfg["scene_file"]))
         except SpecError as err:
             raise ConfigError(f"parameter scene_file: {err}") from None
+        self.gauge = MarginGauge(self.scene.train)  # the train's margins (diagnostics)
         try:
             self.sim = self._simulation()
         except InputError as err:  # a tick that would not end (validate.MAX_STEPS_PER_TICK)
@@ -530,9 +532,12 @@ class RunSession:
                            f"{topic}_clamped": inp.clamped})
         pace_values, pace_problems = self.pace.status(self.now)
         values.update(pace_values)
+        sim = self.sim
+        margins = self.gauge.at(sim.model, sim.y, sim.command, sim.v_set, sim.rate_limit)  # docs/terrain.md
+        values.update({"rollover_margin": margins.rollover, "tip_margin": margins.tip, "grip_margin": margins.grip})
         over = self.companion.error > self.companion.tolerance
         problems = [recorder.error if recorder else "", *self.inputs.problems(), *pace_problems, self.budget_note,
-                    self.companion.stopped, self.companion.line() if over else ""]
+                    self.companion.stopped, self.companion.line() if over else "", *margins.problems()]
         if self.watchdog.stale():
             problems.append(f"steering command stale ({steering.age():.1f} s): {self.cfg['watchdog_action']}")
         return status(self.halted, problems, values)

@@ -216,6 +216,7 @@ class Simulation:
         rk.tick(P, FixedStep("rk4", 1.0).tableau.packed, y, 0.0, 0.0, rate, 0.0, 1e-3, 1e-3, True)
         kernel.rhs_of(P, y, 0.0, 0.0, rate)
         kernel.outputs_of(self.model.P_outputs, y, 0.0, 0.0, rate)
+        kernel.pulls_of(self.model.P_outputs, y, 0.0, 0.0, rate)  # the margins' constraint forces (run/margins.py)
         kernel.margin_of(P, y)
         kernel.switches_of(P, y, 0.0, 0.0)
         kernel.release_of(P, 0.0, 0.0, rate)
@@ -320,13 +321,20 @@ class Simulation:
                                   compiled=self.compiled is not False)
 
 
-def run_scene(scene: Scene, on_output=None, **options) -> tuple[Simulation, Exception | None]:
+def run_scene(scene: Scene, on_output=None, on_state=None, **options) -> tuple[Simulation, Exception | None]:
     """Run the scene to its end with its own inputs, calling on_output(Outputs) at t = 0 and
-    after every tick. Returns the simulation and the error that stopped it early, if any (the
-    outputs already passed on stay valid)."""
+    after every tick, then on_state(the Simulation) (what else a caller reads of the state: its
+    margins, run/margins.py). Returns the simulation and the error that stopped it early, if any
+    (the outputs already passed on stay valid)."""
     sim = Simulation(scene, **options)
-    if on_output:
-        on_output(sim.outputs())
+
+    def report() -> None:
+        if on_output:
+            on_output(sim.outputs())
+        if on_state:
+            on_state(sim)
+
+    report()
     ticks = int(math.floor(scene.duration / sim.tick + 1e-9))
     while sim.ticks < ticks:
         command, v_set = sim.scheduled_inputs(sim.t)
@@ -334,6 +342,5 @@ def run_scene(scene: Scene, on_output=None, **options) -> tuple[Simulation, Exce
             sim.advance(command, v_set)
         except (ModelValidityError, IntegrationError) as err:
             return sim, err
-        if on_output:
-            on_output(sim.outputs())
+        report()
     return sim, None

@@ -24,6 +24,9 @@ class RunSummary:
     max_pitch: float = 0.0  # rad, largest |pitch| of any cart
     min_rollover: float = math.inf  # smallest static rollover margin of a cart with track and height
     min_rollover_cart: str = ""
+    min_tip: float = math.inf  # the tractor's smallest tip margin (inf: not known)
+    min_grip: float = math.inf  # the smallest grip margin of a no-slip axle (inf: not known)
+    min_grip_axle: str = ""
     _last: object = None
 
     def add(self, out) -> None:
@@ -55,6 +58,13 @@ class RunSummary:
             if margins[k] < self.min_rollover:
                 self.min_rollover, self.min_rollover_cart = float(margins[k]), self.stance.names[k]
 
+    def add_margins(self, margins) -> None:
+        """Take the tip and grip margins of one sample (run/margins.Margins; NaN: not known)."""
+        if margins.tip < self.min_tip:
+            self.min_tip = margins.tip
+        if margins.grip < self.min_grip:
+            self.min_grip, self.min_grip_axle = margins.grip, margins.grip_axle
+
     @property
     def duration(self) -> float:
         return self.t_end - self.t_start if self.samples else 0.0
@@ -81,6 +91,13 @@ class RunSummary:
             rows.append(("smallest static rollover margin",
                          f"{self.min_rollover:.3f} ({self.min_rollover_cart}; 1 level, 0 tipping)"
                          if self.stance.measured.any() else "not computed: no cart gives track_width and com_height"))
+        if math.isfinite(self.min_tip):
+            rows.append(("smallest tip margin of the tractor", f"{self.min_tip:.3f} (1 on the level, 0 the front "
+                                                               "wheels lift)"))
+        if math.isfinite(self.min_grip):
+            rows.append(("smallest grip margin", f"{self.min_grip:.3f} ({self.min_grip_axle}; 1 no lateral force, 0 "
+                         "the tyres slide)" + ("; below 0 the no-slip model does not hold: run fidelity slip"
+                                               if self.min_grip < 0 else "")))
         rows.extend((extra or {}).items())
         lines = [f"# {title}", "", "| quantity | value |", "|---|---|"]
         lines += [f"| {k} | {v} |" for k, v in rows]

@@ -28,6 +28,7 @@ from ..physics.loader import load_scene
 from ..physics.spec import INTEGRATOR_METHODS
 from ..physics.terrain import Stance
 from ..run.fidelity import LEVELS, choose
+from ..run.margins import MarginGauge
 from ..run.accuracy import settle
 from ..run.simulation import run_scene
 from ..run.summary import RunSummary
@@ -242,8 +243,11 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
                 summary.add(out)
                 progress.update(out.t)
 
+            gauge = MarginGauge(scene.train)
             sim, stopped = run_scene(scene, on_output=record, method=args.method, step=options["step"], rate=args.rate,
-                                     fidelity=choice.level, split_kinks=options["split_kinks"])
+                                     fidelity=choice.level, split_kinks=options["split_kinks"],
+                                     on_state=lambda s: summary.add_margins(
+                                         gauge.at(s.model, s.y, s.command, s.v_set, s.rate_limit)))
     except (BagError, OSError) as err:
         progress.close()
         print(f"mta run: {err}", file=sys.stderr)

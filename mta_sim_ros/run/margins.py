@@ -1,0 +1,78 @@
+"""The train's margins at one state of a run (docs/terrain.md): each cart's static rollover
+margin, the tractor's longitudinal tip margin and each no-slip axle's grip margin, the last two
+from the level's constraint forces (kernel.drawbar_pulls). What ``mta run``'s report and the
+node's /diagnostics state; a sweep takes the same quantities from its trace (batch.metrics)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..physics import kernel
+from ..physics.loads import grip_margins
+from ..physics.terrain import Stance
+
+
+@dataclass(frozen=True)
+class Margins:
+    rollover: float  # the smallest of the carts with track_width and com_height (NaN: none gives them)
+    rollover_cart: str
+    tip: float  # the tractor's (NaN: not known, Stance.tip_margins)
+    grip: float  # the smallest of the no-slip axles (NaN: no lateral_friction, or no constraint forces)
+    grip_axle: str
+
+    def problems(self) -> list[str]:
+        """What is past a limit, one phrase each (none when every margin is positive or unknown)."""
+        out = []
+        if self.rollover < 0:
+            out.append(f"rollover margin {self.rollover:.2f} of {self.rollover_cart}: its uphill wheels lift")
+        if self.tip < 0:
+            out.append(f"tip margin {self.tip:.2f}: the tractor's front wheels lift")
+        if self.grip < 0:
+            out.append(f"grip margin {self.grip:.2f} at {self.grip_axle}: it needs more lateral force than "
+                       "friction gives, so the no-slip model does not hold (fidelity slip models the drift)")
+        return out
+
+
+def axle_names(train) -> list[str]:
+    """The no-slip axles, in grip_margins' column order."""
+    return [f"{train.carts[0].name}'s front axle"] + [f"{c.name}'s axle" for c in train.carts]
+
+
+def constraint_forces(level, y, command: float, v_set: float, max_rate: float | None = None):
+    """(cart n x OUT, scalars) of kernel.pulls_of at state y of a level: the drawbar pulls
+    (PULL), the axles' lateral forces (LAT, FRONT_LAT); None for a level without them (the slip
+    level, whose tyre forces are its own, and algorithm 1's reference path)."""
+    if not level.has_kernel:
+        return None
+    return kernel.pulls_of(level.P_outputs, np.ascontiguousarray(y, dtype=np.float64), float(command),
+                           float(level.output_input(y, v_set)), kernel.max_rate_of(level.P, max_rate))
+
+
+class MarginGauge:
+    """The margins of a train's states, its Stance and static axle loads built once."""
+
+    def __init__(self, train):
+        self.train = train
+        self.stance = Stance(train)
+        self.axles = axle_names(train)
+
+    def at(self, level, y, command: float, v_set: float, max_rate: float | None = None) -> Margins:
+        heading = np.asarray(y, dtype=float)[level.layout.heading]
+        rollover, cart = math.nan, ""
+        if self.stance.measured.any():
+            margins = self.stance.margins(heading)
+            k = int(np.nanargmin(margins))
+            rollover, cart = float(margins[k]), self.stance.names[k]
+        forces = constraint_forces(level, y, command, v_set, max_rate)
+        pull, grip, axle = math.nan, math.nan, ""
+        if forces is not None:
+            out, sc = forces
+            pull = float(out[0, kernel.PULL])
+            grips = grip_margins(self.train, [sc[kernel.FRONT_LAT]], out[None, :, kernel.LAT])[0]
+            if not np.isnan(grips).all():
+                j = int(np.nanargmin(grips))
+                grip, axle = float(grips[j]), self.axles[j]
+        tip = float(self.stance.tip_margins(heading, pull))
+        return Margins(rollover, cart, tip, grip, axle)
