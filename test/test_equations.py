@@ -97,6 +97,36 @@ def test_the_printed_acceleration_parsed_back_is_the_kernels(name, capsys):
             assert value == pytest.approx(cart[k, column], rel=1e-12, abs=1e-14)
 
 
+@pytest.mark.parametrize("name", ["single_tractor", "offset_hitch", "default"])
+def test_on_a_tilted_plane_the_printed_acceleration_has_the_kernels_grade_terms(name, tmp_path, capsys):
+    """A scene on a plane tilted both ways: its train's V' with the grade resistances F_gk, built
+    and printed (``mta equations SCENE``, read back from the text), against the kernel's y' on the
+    plane at random states; the level's equations have no F_gk, the plane's differ from them."""
+    import dataclasses
+
+    from mta_sim_ros.physics.terrain import Plane
+
+    scene = tmp_path / "tilted.yaml"
+    scene.write_text(f"train: {resolve_config_path(f'trains/{name}.yaml')}\nduration: 5\n"
+                     "steering: {maneuver: straight}\nterrain: {grade_percent: -7, cross_slope_percent: 15}\n",
+                     encoding="utf-8")
+    train = dataclasses.replace(load(name), terrain=Plane(-0.07, 0.15))
+    assert cli.main(["equations", str(scene), "--expand-up-to", "3"]) == 0
+    text = capsys.readouterr().out
+    [line] = [l for l in text.splitlines() if l.startswith("V' = ")]
+    eq = equations.build(train)
+    assert len(eq.grade) == train.n and "F_g1 = " in text and not equations.build(load(name)).grade
+    printed = sp.sympify(line[len("V' = "):], locals=eq.symbols)
+    rng = np.random.default_rng(11)
+    for _ in range(6):
+        y, command = random_state(rng, train)
+        values, expected = kernel_point(train, y, command)
+        level = kernel_point(load(name), y, command)[1]
+        assert abs(expected - level) > 1e-3
+        assert evaluate(printed, eq, values) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert evaluate(eq.acceleration, eq, values) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
 def test_the_recursion_printed_is_the_chain():
     """The printed step, cart k from cart k-1, composed twice for the default unit gives the kernel's
     th'_3 (the recursion is the chain's, on symbols)."""

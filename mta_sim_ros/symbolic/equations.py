@@ -10,6 +10,9 @@ Built symbolically (sympy) from the train file by the model's own code: the kine
   chain on symbols), psi_1 the steering angle, V_1 = V;
 * the structural matrices W_J = d(s'_Ck, th'_k)/dV and W_P = d(s'_A1, s'_Bk)/dV, the reduced mass
   M(q, psi_1) = W_J^T diag(m, J) W_J, the generalized force Q, dM/dt;
+* on a scene's tilted plane (a scene file, or a train whose ``terrain`` is set), gravity's
+  component in the plane (g_x, g_y) as one more force element per cart: the grade resistance
+  F_gk = -m_k g_p . v_Ck / V (``kernel.grade_resistance``), in Q as the resistances are;
 * the Cauchy form q' = G(q, psi_1) V, psi_1' = actuator, V' = (Q - 1/2 M' V) / M;
 * for n <= ``expand_up_to`` (``render``'s, default 2), the structural matrices, M, Q, dM/dt and V'
   expanded in the pose, the steering angle and its rate, V and the forces (they swell about 3x per
@@ -31,6 +34,7 @@ class Equations:
     symbols: dict  # name -> sympy Symbol
     values: dict  # Symbol -> the train's number
     rates: list  # th'_k
+    grade: list  # F_gk, each cart's grade resistance referred to V (empty on the level)
     kapB: list
     kapC: list
     kapT: list
@@ -65,8 +69,13 @@ def build(train) -> Equations:
     geom = ChainGeometry(tuple(l), tuple(ak / lk for ak, lk in zip(a, l)), tuple(ck / lk for ck, lk in zip(c, l)))
     ch = chain(geom, list(th), psi1, V, rate, fn=sp)
     mass, velocity_term = mass_terms(m, J, ch, V)
-    force = F - resistance_force(FB, ch.kapB)
-    accel = cauchy_acceleration(F, resistance_force(FB, ch.kapB), velocity_term, mass)
+    gx, gy = sp.symbols("g_x g_y")
+    grade = [] if train.terrain is None else [  # kernel.grade_resistance on symbols
+        -mk * (gx * (kb * sp.cos(t) - ck * kt * sp.sin(t)) + gy * (kb * sp.sin(t) + ck * kt * sp.cos(t)))
+        for mk, ck, t, kb, kt in zip(m, c, th, ch.kapB, ch.kapT)]
+    resisting = resistance_force(FB, ch.kapB) + sum(grade)
+    force = F - resisting
+    accel = cauchy_acceleration(F, resisting, velocity_term, mass)
     # the recursion, from the same chain on symbols: cart k's own speeds from its psi_k and V_k, and
     # one step from cart k-1 to cart k (psi_k, V_k from cart k-1's)
     pk, Vk, lk, ck, tk = sp.symbols("psi_k V_k l_k c_k theta_k")
@@ -80,13 +89,17 @@ def build(train) -> Equations:
         "s'_Bk": own.kapB[0] * Vk,
         "s'_Ck": own.kapC[0] * Vk,
     }
-    symbols = {str(s): s for s in (*th, psi1, rate, V, *l, *a, *c, *m, *J, F, *FB)}
+    symbols = {str(s): s for s in (*th, psi1, rate, V, *l, *a, *c, *m, *J, F, *FB, *((gx, gy) if grade else ()))}
     values = {}
+    if grade:
+        from ..physics.terrain import PlaneFrame
+
+        values[gx], values[gy], _ = PlaneFrame.of(train.terrain).gravity(train.gravity)
     for k, cart in enumerate(train.carts):
         values.update({l[k]: cart.length, a[k]: cart.hitch_offset, c[k]: cart.com_offset, m[k]: cart.mass,
                        J[k]: cart.yaw_inertia})
-    return Equations(train, symbols, values, [kt * V for kt in ch.kapT], ch.kapB, ch.kapC, ch.kapT, ch.psi, ch.kap,
-                     mass, 2 * velocity_term / V, force, accel, recursion)
+    return Equations(train, symbols, values, [kt * V for kt in ch.kapT], grade, ch.kapB, ch.kapC, ch.kapT, ch.psi,
+                     ch.kap, mass, 2 * velocity_term / V, force, accel, recursion)
 
 
 def render(eq: Equations, fmt: str = "markdown", numbers: bool = False, expand_up_to: int = 2) -> str:
@@ -118,6 +131,11 @@ def render(eq: Equations, fmt: str = "markdown", numbers: bool = False, expand_u
         parts += [f"draft {d.soil_factor:g} x ({d.A:g} + {d.B:g} S + {d.C:g} S^2) x {d.width:g} x {d.depth:g}"
                   for d in tr.draft if d.cart == c.name]
         forces.append(f"- (F_B{k}, s'_B{k}): at B_{k}, against its motion" + (f": {', '.join(parts)}" if parts else ""))
+    if eq.grade:
+        gx, gy = eq.values[eq.symbols["g_x"]], eq.values[eq.symbols["g_y"]]
+        forces.append(f"- (F_gk, V) for each cart: gravity's component in the plane g_p = (g_x, g_y) = ({gx:.6g}, "
+                      f"{gy:.6g}) m/s^2 at C_k (terrain: grade {tr.terrain.grade:g}, cross slope "
+                      f"{tr.terrain.cross_slope:g}), F_gk = -m_k g_p . v_Ck / V, v_Ck / V = kapB_k e_k + c_k kapT_k n_k")
     out += ["", "Force elements (force, the speed of its point):", "", *forces, ""]
     out += ["## The recursion (cart k from cart k-1; psi_1 the steering angle, V_1 = V)", ""]
     out += block([(name, show(expr)) for name, expr in eq.recursion.items()])
@@ -135,8 +153,11 @@ def render(eq: Equations, fmt: str = "markdown", numbers: bool = False, expand_u
             "M = sum_k m_k kapC_k^2 + J_k kapT_k^2 (= W_J^T diag(m, J) W_J), Q = F_A1 - sum_k F_Bk kapB_k, "
             "dM/dt = sum_k 2 (m_k kapC_k kapC_k' + J_k kapT_k kapT_k'), the rates along the motion with "
             "theta'_k = kapT_k V and dpsi_1 = psi_1' the actuator's rate.", ""]
+    if eq.grade:
+        out += ["On the plane Q = F_A1 - sum_k F_Bk kapB_k - sum_k F_gk, F_gk > 0 while cart k climbs.", ""]
     if n <= expand_up_to:
-        out += block([("M", show(eq.mass)), ("Q", show(eq.force)), ("dM/dt", show(eq.mass_rate))])
+        grades = [(f"F_g{k + 1}", show(f)) for k, f in enumerate(eq.grade)]
+        out += block([*grades, ("M", show(eq.mass)), ("Q", show(eq.force)), ("dM/dt", show(eq.mass_rate))])
     out += ["## Cauchy form", "",
             "x' = V cos(theta_1 + psi_1), y' = V sin(theta_1 + psi_1), theta_k' = kapT_k V, psi_1' = the actuator "
             f"(psi_1' = clip((clip(u, +-{tr.actuator.max_angle:.4g}) - psi_1) / {tr.actuator.time_constant:g}, "
