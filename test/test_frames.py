@@ -502,3 +502,9 @@ def test_on_a_slope_the_session_tilts_odom_and_stamps_the_poses_in_it(tmp_path):
     assert rosbags_decode("geometry_msgs/msg/PoseArray", msgs["hitch_poses"]).header.frame_id == "unit3/odom"
     markers = rosbags_decode("visualization_msgs/msg/MarkerArray", msgs["markers"]).markers
     assert markers and {m.header.frame_id for m in markers} == {"unit3/odom"}
+    # the ground, drawn in the plane's frame (unit3/odom): its top at z = 0, centred under A_1
+    [ground] = [m for m in markers if m.ns == "terrain"]
+    [tick] = [p for p in published[2:] if "markers" in p][-1:]  # the markers' tick: its own hitch poses
+    a1 = rosbags_decode("geometry_msgs/msg/PoseArray", tick["hitch_poses"]).poses[0].position
+    assert ground.type == 1 and ground.pose.position.z + ground.scale.z / 2 == 0.0
+    assert (ground.pose.position.x, ground.pose.position.y) == pytest.approx((a1.x, a1.y), abs=1e-9)

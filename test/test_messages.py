@@ -30,6 +30,7 @@ from mta_sim_ros.bag import cdr, stamp
 from mta_sim_ros.messages import markers as drawing
 from mta_sim_ros.messages import topics
 from mta_sim_ros.physics.loader import load_scene, load_train
+from mta_sim_ros.physics.terrain import Plane
 from mta_sim_ros.run.simulation import Simulation
 
 REPO = Path(__file__).resolve().parents[1]
@@ -159,9 +160,10 @@ def test_commands(lane_change):
 
 # -- any number of carts ------------------------------------------------------------------------
 
-def fake_train(n: int):
+def fake_train(n: int, terrain=None):
     return SimpleNamespace(name=f"train_{n}", carts=[SimpleNamespace(name=f"cart_{k}" + "x" * (k % 4)) for k in range(n)],
-                           draft=[SimpleNamespace(cart=f"cart_{k}" + "x" * (k % 4), width=1.0 + k) for k in range(1, n, 3)])
+                           draft=[SimpleNamespace(cart=f"cart_{k}" + "x" * (k % 4), width=1.0 + k) for k in range(1, n, 3)],
+                           terrain=terrain)
 
 
 def fake_outputs(n: int, seed: int):
@@ -183,10 +185,13 @@ def test_templates_for_any_number_of_carts_build_and_decode(n):
     train, out = fake_train(n), fake_outputs(n, n)
     names = [c.name for c in train.carts]
     check_outputs(messages.OutputEncoder(names, "map"), out, names, "map")
-    data = messages.TrainMarkers(train, "odom").encode(out)
-    drawn = messages.train_markers(out, train, "odom")
-    assert data == cdr.encode(messages.MARKERS_TYPE, drawn)
-    assert deserialize_message(data, MarkerArray) == rclpy_message(messages.MARKERS_TYPE, drawn)
+    for terrain in (None, Plane(0.1, -0.2)):  # on a tilted plane the ground is drawn too
+        train = fake_train(n, terrain)
+        data = messages.TrainMarkers(train, "odom").encode(out)
+        drawn = messages.train_markers(out, train, "odom")
+        assert data == cdr.encode(messages.MARKERS_TYPE, drawn)
+        assert deserialize_message(data, MarkerArray) == rclpy_message(messages.MARKERS_TYPE, drawn)
+        assert len(drawn["markers"]) == 3 * n + 1 + (terrain is not None)
 
 
 @pytest.mark.slow

@@ -6,7 +6,10 @@ last cart), as wide as :func:`~mta_sim_ros.physics.outline.cart_widths` says; ``
 the axis, as long as the cart is wide; ``label``, a TEXT_VIEW_FACING with the cart's name at the
 outline's centre. Plus one SPHERE_LIST (ns ``hitches``, id 0) of the points A_k, each in its
 cart's colour. Everything lies in z = 0 with identity poses; stable ids make every message
-replace the previous one.
+replace the previous one. A train on a scene's tilted plane (``train.terrain``) also draws the
+ground: a CUBE (ns ``terrain``, id 0) TERRAIN_SIZE m square and TERRAIN_THICKNESS thick, its top
+at z = 0 and its centre under A_1, in the frame of the plane (the node's odom is the plane: the
+train is drawn on it and the ground tilts with it in RViz and Foxglove).
 
 :func:`train_markers` gives the message as plain dicts; :class:`TrainMarkers` its CDR bytes from
 a template (the node's marker tick), byte for byte ``bag.cdr.encode`` of the dicts.
@@ -23,7 +26,7 @@ from ..physics.outline import cart_widths
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 
 # visualization_msgs/Marker constants (Marker.msg).
-LINE_STRIP, LINE_LIST, SPHERE_LIST, TEXT_VIEW_FACING = 4, 5, 7, 9
+CUBE, LINE_STRIP, LINE_LIST, SPHERE_LIST, TEXT_VIEW_FACING = 1, 4, 5, 7, 9
 ADD = 0
 
 # Marker namespaces, one per kind of marker; within each the id is the cart index (the single
@@ -32,10 +35,14 @@ NS_OUTLINE = "outline"
 NS_AXLE = "axle"
 NS_HITCHES = "hitches"
 NS_LABEL = "label"
+NS_TERRAIN = "terrain"
 
 LINE_WIDTH = 0.1  # m, outlines and axles
 HITCH_DIAMETER = 0.5  # m, hitch point spheres
 TEXT_HEIGHT = 1.0  # m, cart name labels
+TERRAIN_SIZE = 200.0  # m, the side of the ground drawn under the train on a tilted plane
+TERRAIN_THICKNESS = 0.0625  # m
+TERRAIN_COLOR = {"r": 0.5625, "g": 0.4375, "b": 0.25, "a": 0.5}  # soil, half transparent (exact in float32)
 
 # Cart colours (RGB), in train order, repeated for long trains. Multiples of 1/16, exact in the
 # message's float32 fields, so a received marker equals the one sent.
@@ -54,7 +61,7 @@ _POINTS_PER_CART = 8
 
 def coordinates(out, train, widths: list[float]) -> list[float]:
     """x, y of every point drawn: per cart the outline's 5 corners, the axle's 2 ends and the
-    label's position, then the hitch points A_k.
+    label's position, then the hitch points A_k, then on a tilted plane the ground's centre (A_1).
 
     Raises:
         ValueError: the outputs are of another train (another number of carts).
@@ -83,6 +90,8 @@ def coordinates(out, train, widths: list[float]) -> list[float]:
                (ax + tx) / 2.0, (ay + ty) / 2.0)  # label
     for x, y in front:
         xy += (x, y)
+    if train.terrain is not None:
+        xy += front[0]
     return xy
 
 
@@ -118,6 +127,10 @@ def marker_array(train, frame_id: str, time: dict, xy: list) -> dict:
     n = len(train.carts)
     markers.append(marker(NS_HITCHES, 0, SPHERE_LIST, {"x": HITCH_DIAMETER, "y": HITCH_DIAMETER, "z": HITCH_DIAMETER},
                           cart_color(0), points=points(n), colors=[cart_color(k) for k in range(n)]))
+    if train.terrain is not None:
+        centre = {**points(1)[0], "z": -TERRAIN_THICKNESS / 2.0}
+        markers.append(marker(NS_TERRAIN, 0, CUBE, {"x": TERRAIN_SIZE, "y": TERRAIN_SIZE, "z": TERRAIN_THICKNESS},
+                              TERRAIN_COLOR, pose={"position": centre, "orientation": {"w": 1.0}}))
     return {"markers": markers}
 
 
@@ -133,7 +146,7 @@ class TrainMarkers:
     def __init__(self, train, frame_id: str = "map"):
         self.train, self.frame_id = train, frame_id
         self.widths = cart_widths(train)
-        count = (_POINTS_PER_CART + 1) * len(train.carts)
+        count = (_POINTS_PER_CART + 1) * len(train.carts) + (train.terrain is not None)
         slots = [Slot("xy", i) for i in range(2 * count)]
         self.template = CdrTemplate(MARKERS_TYPE, marker_array(train, frame_id, TIME_SLOTS, slots))
 
