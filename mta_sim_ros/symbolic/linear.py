@@ -20,9 +20,12 @@ readable reference of the kinematic chain, run on sympy symbols: one source):
 (turn: A_1 in polar coordinates about the turn's centre, eta measured from the radius, so that
 eta + psi = +-pi/2 on the circle). A = df/dx and B = df/du are the exact derivatives of these
 expressions (sympy), at the operating point: straight, everything 0; a turn of steering psi_0,
-the steady circle of ``steady.steady_circle``. The speed V is a parameter: on a straight line its
-coupling to these states vanishes exactly (V' depends on them only through even functions,
-cos psi_k and squares), in a turn it is left out (the speed control holds V).
+the steady circle of ``steady.steady_circle``. The speed V is a parameter: on a straight line on
+the level its coupling to these states vanishes exactly (V' depends on them only through even
+functions, cos psi_k and squares), in a turn it is left out (the speed control holds V). On a
+scene's tilted plane V' depends on the heading at first order (the grade resistances F_gk change as
+the train turns up or down the slope), left out in the same way; the no-slip chain itself does not
+see gravity, so A and B on any plane are the level's.
 
 Closed forms (MODEL.md): straight, the hitch modes are -V / l_k (k = 2..n: decaying forward,
 growing in reverse), the heading and the lateral offset are neutral (0, 0), the actuator -1 / tau;
