@@ -93,3 +93,18 @@ def test_at_the_slip_level_the_node_states_no_grip_margin(tmp_path):
     values = s.diagnostics().values
     assert math.isnan(values["grip_margin"]) and math.isnan(values["tip_margin"])
     assert values["rollover_margin"] < 1
+
+
+def test_a_state_that_is_not_finite_has_margins_not_known_and_no_error(tmp_path):
+    """What a halted run may hold: NaN in the state gives NaN margins (no exception in the
+    node's diagnostics), and no warning about them."""
+    import numpy as np
+
+    from mta_sim_ros.physics.loader import load_scene
+    from mta_sim_ros.run.margins import MarginGauge
+    from mta_sim_ros.run.simulation import Simulation
+
+    sim = Simulation(load_scene(contour_scene(tmp_path, 30.0)))
+    y = np.full_like(sim.y, np.nan)
+    m = MarginGauge(sim.model.train).at(sim.model, y, 0.0, 2.8)
+    assert math.isnan(m.rollover) and math.isnan(m.tip) and math.isnan(m.grip) and m.problems() == []

@@ -61,8 +61,8 @@ class MarginGauge:
     def at(self, level, y, command: float, v_set: float, max_rate: float | None = None) -> Margins:
         heading = np.asarray(y, dtype=float)[level.layout.heading]
         rollover, cart = math.nan, ""
-        if self.stance.measured.any():
-            margins = self.stance.margins(heading)
+        margins = self.stance.margins(heading)
+        if not np.isnan(margins).all():  # a cart gives track and height, and the state is finite
             k = int(np.nanargmin(margins))
             rollover, cart = float(margins[k]), self.stance.names[k]
         forces = constraint_forces(level, y, command, v_set, max_rate)
