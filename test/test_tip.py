@@ -48,26 +48,59 @@ def test_a_lone_tractor_up_and_down_a_grade_tips_at_tan_a_of_c_over_h(grade):
     for heading, sign in ((0.0, -1.0), (math.pi, 1.0)):
         got = margin_of(measured(1, terrain=Plane(grade, 0.0)), heading=heading)
         assert got == pytest.approx(math.cos(a) + sign * H / C * math.sin(a), abs=1e-12)
-    assert math.cos(math.atan(C / H)) - H / C * math.sin(math.atan(C / H)) == pytest.approx(0.0, abs=1e-15)
+
+
+def drawbar_moment(tr, cos: float = 1.0) -> float:
+    """V_2 a_1: the cart behind the tractor rests V_2 on its drawbar, a_1 behind its rear axle.
+    Cart 2 on its axle and hitch, with cart 3 (if any) resting V_3 = W_3 c_3 / l_3 on cart 2's rear
+    hitch a_2 behind its axle: V_2 = (W_2 c_2 - V_3 a_2) / l_2, the weights W_k = m_k g cos(slope)."""
+    t, c2 = tr.carts[0], tr.carts[1]
+    v3 = tr.carts[2].mass * G * cos * tr.carts[2].com_offset / tr.carts[2].length if tr.n > 2 else 0.0
+    assert tr.n <= 3
+    return (c2.mass * G * cos * c2.com_offset - v3 * c2.hitch_offset) / c2.length * t.hitch_offset
 
 
 @pytest.mark.parametrize("n", [2, 3])
 def test_on_the_level_the_drawbar_pull_at_steady_speed_unloads_the_front_axle(n):
     """Straight at the governor's steady 3 m/s: the drawbar carries the resistances behind it
-    (Newton on the carts behind), sum F_Bk for k >= 2, and the margin is 1 - P h_d / (m g c)."""
+    (Newton on the carts behind), sum F_Bk for k >= 2, and the margin is 1 - (P h_d + V_2 a_1) /
+    (m g c), the cart behind resting V_2 on the drawbar a_1 behind the rear axle."""
     tr = measured(n)
     sim = Simulation(trains.scene(tr))
     cart, _ = kernel.pulls_of(sim.model.P, initial_state(trains.scene(tr), sim.model), 0.0, 3.0,
                               kernel.max_rate_of(sim.model.P))
     pull = sum(cart[k, kernel.RES] for k in range(1, n))
     assert cart[0, kernel.PULL] == pytest.approx(pull, rel=1e-12) and pull > 10e3
-    assert margin_of(tr) == pytest.approx(1 - pull * HD / (tr.carts[0].mass * G * C), rel=1e-9)
+    assert margin_of(tr) == pytest.approx(1 - (pull * HD + drawbar_moment(tr)) / (tr.carts[0].mass * G * C), rel=1e-9)
+
+
+def test_standing_the_margin_is_the_static_front_axle_load_and_a_heavy_drawbar_lifts_it():
+    """No pull: the margin is the front axle's static load (loads.static_axle_loads, the chain's
+    statics) over a lone tractor's, m g c / l, less on a grade the weight's part along the ground
+    at h, m g R20 h / l, which the static loads leave out. A 20 t cart resting all its weight on
+    the drawbar (c_2 = l_2) lifts the front wheels: both below 0."""
+    from mta_sim_ros.physics.loads import static_axle_loads
+    from mta_sim_ros.physics.terrain import PlaneFrame, Stance
+
+    for plane in (Plane(0.0, 0.0), Plane(0.1, -0.2)):
+        tr = measured(3, terrain=plane)
+        t = tr.carts[0]
+        margin = float(Stance(tr).tip_margins([[0.0, 0.0, 0.0]], [0.0])[0])
+        along = t.mass * G * PlaneFrame.of(plane).x[2] * H / t.length  # heading 0: R20 is the x axis's rise
+        assert margin * t.mass * G * C / t.length == pytest.approx(static_axle_loads(tr)[0] - along, rel=1e-12)
+    tr = measured(2)
+    heavy = dataclasses.replace(tr.carts[1], mass=20000.0, com_offset=tr.carts[1].length)
+    tr = dataclasses.replace(tr, carts=(tr.carts[0], heavy))
+    t = tr.carts[0]
+    margin = float(Stance(tr).tip_margins([[0.0, 0.0]], [0.0])[0])
+    assert margin == pytest.approx(1 - 20000.0 * t.hitch_offset / (t.mass * C), rel=1e-12) and margin < 0
+    assert static_axle_loads(tr)[0] == pytest.approx(margin * t.mass * G * C / t.length, rel=1e-12)
 
 
 def test_up_a_grade_the_pull_adds_the_weight_of_the_carts_behind():
     """Straight up a 12 % grade at 3 m/s held (prescribed speed: V' = 0 throughout): the pull is each cart's resistance plus its
     m g sin a (Newton on the carts behind), and the margin falls by both the tractor's own weight
-    moving back and that pull: cos a - (h / c) sin a - P h_d / (m g c)."""
+    moving back and that pull: cos a - (h / c) sin a - (P h_d + V_2 a_1) / (m g c)."""
     grade = 0.12
     a = math.atan(grade)
     tr = dataclasses.replace(measured(3, terrain=Plane(grade, 0.0)), traction=trains.prescribed(3.0))
@@ -76,7 +109,7 @@ def test_up_a_grade_the_pull_adds_the_weight_of_the_carts_behind():
     cart, _ = kernel.pulls_of(sim.model.P, initial_state(sc, sim.model), 0.0, 3.0, kernel.max_rate_of(sim.model.P))
     pull = sum(cart[k, kernel.RES] + c.mass * G * math.sin(a) for k, c in enumerate(tr.carts) if k > 0)
     got = margin_of(tr)
-    expect = math.cos(a) - H / C * math.sin(a) - pull * HD / (tr.carts[0].mass * G * C)
+    expect = math.cos(a) - H / C * math.sin(a) - (pull * HD + drawbar_moment(tr, math.cos(a))) / (tr.carts[0].mass * G * C)
     assert got == pytest.approx(expect, rel=1e-6)
     lower = dataclasses.replace(tr, carts=(dataclasses.replace(tr.carts[0], hitch_height=0.25),) + tr.carts[1:])
     assert margin_of(lower) - got == pytest.approx(pull * (HD - 0.25) / (tr.carts[0].mass * G * C), rel=1e-6)

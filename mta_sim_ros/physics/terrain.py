@@ -33,13 +33,16 @@ negative past it.
 
 Longitudinal tip margin of the tractor (wheelbase L, centre of mass c ahead of the rear axle and h
 over the ground, weight m g) towing with the drawbar pull P = H_2 . e_1 (the force on the drawbar
-along the tractor's axis, kernel.drawbar_pulls) at the hitch height h_d: its front axle's load
-over the load it has standing on the level, from the moments about the rear wheels' contact line
-(gravity along the body -g R20 at h, across it g R22 at c, the pull parallel to the ground at h_d):
+along the tractor's axis, kernel.drawbar_pulls) at the hitch height h_d, the cart behind resting
+V_2 on the drawbar a_1 behind the rear axle (loads.hitch_loads: the chain's statics, normal to the
+plane): its front axle's load over the load a lone tractor has standing on the level, from the
+moments about the rear wheels' contact line (gravity along the body -g R20 at h, across it g R22 at
+c, the pull parallel to the ground at h_d, V_2 across the ground at -a_1):
 
-    N_f L = m g (R22 c - R20 h) - P h_d        tip margin = R22 - R20 h / c - P h_d / (m g c)
+    N_f L = m g (R22 c - R20 h) - P h_d - V_2 a_1
+    tip margin = R22 - R20 h / c - (P h_d + V_2 a_1) / (m g c)
 
-1 standing on the level, 0 where the front wheels lift (a lone tractor heading up a grade a:
+1 for a lone tractor standing on the level, 0 where the front wheels lift (a lone tractor heading up a grade a:
 tan a = c / h). Static: the tractor's own acceleration (m V' h more on the rear axle while it
 speeds up) and the wheels' rolling moments are left out; the pull carries the carts' inertia.
 """
@@ -172,12 +175,14 @@ class Stance:
         self.measured = np.array([c.track_width is not None for c in train.carts])
         self.track = np.array([c.track_width or 1.0 for c in train.carts])
         self.height = np.array([c.com_height or 0.0 for c in train.carts])
+        from .loads import hitch_loads  # (loads.py reads this module's PlaneFrame)
+
         tractor = train.carts[0]
-        tows = len(train.carts) > 1
-        known = tractor.com_height is not None and tractor.com_offset > 0 and (tractor.hitch_height or not tows)
-        #: (c, h, h_d, m g) of the tractor's tip margin, or None where it is not known (``tip_margins``)
-        self.tip = (tractor.com_offset, tractor.com_height, tractor.hitch_height or 0.0,
-                    tractor.mass * train.gravity) if known else None
+        self.tows = len(train.carts) > 1
+        known = tractor.com_height is not None and tractor.com_offset > 0 and (tractor.hitch_height or not self.tows)
+        #: (c, h, h_d, m g, V_2 a_1) of the tractor's tip margin, or None where it is not known (``tip_margins``)
+        self.tip = (tractor.com_offset, tractor.com_height, tractor.hitch_height or 0.0, tractor.mass * train.gravity,
+                    float(hitch_loads(train)[1]) * tractor.hitch_offset) if known else None
 
     def angles(self, heading) -> tuple[np.ndarray, np.ndarray]:
         """(roll, pitch) of every cart, rad (REP-103)."""
@@ -196,12 +201,14 @@ class Stance:
         """The tractor's longitudinal tip margin (``tip_margin``) at each row of ``heading`` (rows x
         carts) with the drawbar pull ``pull`` along its axis (rows, N); NaN where it is not known: the
         tractor gives no com_height, or tows and gives no hitch_height, or its centre of mass is not
-        ahead of its rear axle (c <= 0), or the pull is NaN (a level without constraint forces)."""
+        ahead of its rear axle (c <= 0), or it tows and the pull is NaN (a level without constraint
+        forces; a lone tractor's is 0)."""
         th = np.asarray(heading)[..., 0]
         if self.tip is None:
             return np.full(np.shape(th), np.nan)
         c, s = np.cos(th), np.sin(th)
-        return tip_margin(*self.tip, self.f20 * c + self.f21 * s, self.f22, np.asarray(pull, dtype=float))
+        pull = np.asarray(pull, dtype=float) if self.tows else np.zeros(np.shape(th))
+        return tip_margin(*self.tip, self.f20 * c + self.f21 * s, self.f22, pull)
 
 
 class HeightGrid:
@@ -246,10 +253,11 @@ def rollover_margin(track: float, com_height: float, roll: float) -> float:
     return 1.0 - 2.0 * com_height * abs(math.tan(roll)) / track
 
 
-def tip_margin(com_offset: float, com_height: float, hitch_height: float, weight: float, r20, r22, pull):
+def tip_margin(com_offset: float, com_height: float, hitch_height: float, weight: float, drawbar_moment: float,
+               r20, r22, pull):
     """The tractor's longitudinal tip margin (the module docstring) from R20, R22 of its rotation,
-    the pull along its axis, N, and its weight m g, N (numbers or arrays)."""
-    return r22 - r20 * com_height / com_offset - pull * hitch_height / (weight * com_offset)
+    the pull along its axis, N, its weight m g, N, and V_2 a_1, N m (numbers or arrays)."""
+    return r22 - r20 * com_height / com_offset - (pull * hitch_height + drawbar_moment) / (weight * com_offset)
 
 
 def tipping_side_slope(track: float, com_height: float) -> float:
