@@ -113,3 +113,18 @@ def test_lateral_friction_out_of_range_is_one_line(value):
         loader.load_train_text(text, "t.yaml")
     message = str(err.value)
     assert "lateral_friction" in message and "\n" not in message
+
+
+def test_an_adaptive_method_s_sweep_run_measures_the_same_forces():
+    """A sweep's run with an adaptive method goes tick by tick (not the compiled whole run): its
+    pulls and margins come from the same constraint forces at its states, equal to the fixed-step
+    run's to the integrators' error."""
+    tr = dataclasses.replace(trains.train(3), terrain=Plane(0.05, 0.15), lateral_friction=0.5)
+    tractor = dataclasses.replace(tr.carts[0], track_width=1.9, com_height=1.1, hitch_height=0.5)
+    tr = dataclasses.replace(tr, carts=(tractor,) + tr.carts[1:])
+    sc = trains.scene(tr, table=((0.0, 2.0, 4.0), (0.0, 0.3, 0.3)), duration=8.0)
+    fixed = run_metrics(sc, fidelity="dynamic").metrics
+    adaptive = run_metrics(sc, fidelity="dynamic", method="RK45").metrics
+    for name in ("min_grip_margin", "min_tip_margin", "hitch2_mean_pull_kN", "hitch3_max_pull_kN"):
+        assert math.isfinite(adaptive[name]), name
+        assert adaptive[name] == pytest.approx(fixed[name], rel=1e-4), name

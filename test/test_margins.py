@@ -108,3 +108,17 @@ def test_a_state_that_is_not_finite_has_margins_not_known_and_no_error(tmp_path)
     y = np.full_like(sim.y, np.nan)
     m = MarginGauge(sim.model.train).at(sim.model, y, 0.0, 2.8)
     assert math.isnan(m.rollover) and math.isnan(m.tip) and math.isnan(m.grip) and m.problems() == []
+
+
+def test_an_unloaded_axle_that_must_hold_is_stated_not_hidden():
+    """A grip margin of -inf (an axle with no static load that must give a lateral force,
+    loads.grip_margins) is the worst there is: the report states it and what it means."""
+    from mta_sim_ros.run.margins import Margins
+    from mta_sim_ros.run.summary import RunSummary
+
+    summary = RunSummary(("tractor", "cart"))
+    summary.add_margins(Margins(math.nan, "", 0.4, 0.2, "tractor's axle"))
+    summary.add_margins(Margins(math.nan, "", math.nan, -math.inf, "cart's axle"))
+    text = summary.markdown("run")
+    assert "| smallest grip margin | -inf (cart's axle;" in text and "the no-slip model does not hold" in text
+    assert "| smallest tip margin of the tractor | 0.400" in text

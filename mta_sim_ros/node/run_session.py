@@ -533,7 +533,8 @@ class RunSession:
         pace_values, pace_problems = self.pace.status(self.now)
         values.update(pace_values)
         sim = self.sim
-        margins = self.gauge.at(sim.model, sim.y, sim.command, sim.v_set, sim.rate_limit)  # docs/terrain.md
+        margins = self.gauge.at(sim.model, sim.y, sim.command, sim.v_set, sim.rate_limit,  # docs/terrain.md
+                                sim.compiled is not False)
         values.update({"rollover_margin": margins.rollover, "tip_margin": margins.tip, "grip_margin": margins.grip})
         over = self.companion.error > self.companion.tolerance
         problems = [recorder.error if recorder else "", *self.inputs.problems(), *pace_problems, self.budget_note,

@@ -41,7 +41,7 @@ Metrics (``metric_names``; each column's name ends in its unit; per hitch k = 2.
     tip margin                                the tractor's smallest longitudinal tip margin with
                                               the drawbar pull (terrain.tip_margin; NaN when its
                                               com_height, or the hitch_height of a tractor that
-                                              tows, is not given, or the level has no pulls)
+                                              tows, is not given, or the slip level: no pulls)
     grip margin                               the smallest of any no-slip axle: 1 - its lateral
                                               force over mu x its static load (physics.loads;
                                               NaN without lateral_friction, or at the slip level)
@@ -66,6 +66,7 @@ from ..physics.loads import grip_margins
 from ..physics.terrain import Stance
 from . import offsets, whole
 from .accuracy import settle
+from .margins import constraint_forces
 from .simulation import Simulation, speed_setpoints, table_values
 
 #: the verdicts of a run
@@ -129,7 +130,8 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
 
 
 def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Exception | None]:
-    """The run through Simulation.advance, one trace row a tick from its Outputs."""
+    """The run through Simulation.advance, one trace row a tick from its Outputs and, on a level
+    with them, the constraint forces at its state (margins.constraint_forces; NaN at the slip level)."""
     def row(out, i):
         trace[i, :whole.TRACE_HEAD] = out.traction, out.speed, out.jackknife_margin, out.steering, math.nan
         cart = trace[i, whole.TRACE_HEAD:].reshape(-1, whole.TRACE_CART)
@@ -137,7 +139,11 @@ def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Except
         cart[:, whole.TR_HEADING] = out.heading
         cart[0, whole.TR_PHI] = 0.0
         cart[1:, whole.TR_PHI] = out.hitch_angle
-        cart[:, whole.TR_PULL] = cart[:, whole.TR_LAT] = math.nan  # constraint forces: the kernel's outputs only
+        cart[:, whole.TR_PULL] = cart[:, whole.TR_LAT] = math.nan
+        forces = constraint_forces(sim.model, sim.y, sim.command, sim.v_set, sim.rate_limit, sim.compiled is not False)
+        if forces is not None:
+            cart[:, whole.TR_PULL], cart[:, whole.TR_LAT] = forces[0][:, kernel.PULL], forces[0][:, kernel.LAT]
+            trace[i, whole.TR_FRONT_LAT] = forces[1][kernel.FRONT_LAT]
 
     row(sim.outputs(), 0)
     for i in range(commands.shape[0]):

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..physics import kernel
-from ..physics.loads import grip_margins
+from ..physics.loads import grip_margins, static_axle_loads
 from ..physics.terrain import Stance
 
 
@@ -40,14 +40,16 @@ def axle_names(train) -> list[str]:
     return [f"{train.carts[0].name}'s front axle"] + [f"{c.name}'s axle" for c in train.carts]
 
 
-def constraint_forces(level, y, command: float, v_set: float, max_rate: float | None = None):
+def constraint_forces(level, y, command: float, v_set: float, max_rate: float | None = None, compiled: bool = True):
     """(cart n x OUT, scalars) of kernel.pulls_of at state y of a level: the drawbar pulls
     (PULL), the axles' lateral forces (LAT, FRONT_LAT); None for a level without them (the slip
-    level, whose tyre forces are its own, and algorithm 1's reference path)."""
+    level, whose tyre forces are its own, and algorithm 1's reference path). ``compiled`` False:
+    the kernel as plain Python (the same numbers)."""
     if not level.has_kernel:
         return None
-    return kernel.pulls_of(level.P_outputs, np.ascontiguousarray(y, dtype=np.float64), float(command),
-                           float(level.output_input(y, v_set)), kernel.max_rate_of(level.P, max_rate))
+    run = kernel.pulls_of if compiled else kernel.pulls_of.py_func
+    return run(level.P_outputs, np.ascontiguousarray(y, dtype=np.float64), float(command),
+               float(level.output_input(y, v_set)), kernel.max_rate_of(level.P, max_rate))
 
 
 class MarginGauge:
@@ -57,20 +59,22 @@ class MarginGauge:
         self.train = train
         self.stance = Stance(train)
         self.axles = axle_names(train)
+        self.loads = static_axle_loads(train)
 
-    def at(self, level, y, command: float, v_set: float, max_rate: float | None = None) -> Margins:
+    def at(self, level, y, command: float, v_set: float, max_rate: float | None = None,
+           compiled: bool = True) -> Margins:
         heading = np.asarray(y, dtype=float)[level.layout.heading]
         rollover, cart = math.nan, ""
         margins = self.stance.margins(heading)
         if not np.isnan(margins).all():  # a cart gives track and height, and the state is finite
             k = int(np.nanargmin(margins))
             rollover, cart = float(margins[k]), self.stance.names[k]
-        forces = constraint_forces(level, y, command, v_set, max_rate)
+        forces = constraint_forces(level, y, command, v_set, max_rate, compiled)
         pull, grip, axle = math.nan, math.nan, ""
         if forces is not None:
             out, sc = forces
             pull = float(out[0, kernel.PULL])
-            grips = grip_margins(self.train, [sc[kernel.FRONT_LAT]], out[None, :, kernel.LAT])[0]
+            grips = grip_margins(self.train, [sc[kernel.FRONT_LAT]], out[None, :, kernel.LAT], self.loads)[0]
             if not np.isnan(grips).all():
                 j = int(np.nanargmin(grips))
                 grip, axle = float(grips[j]), self.axles[j]

@@ -91,10 +91,10 @@ class RunSummary:
             rows.append(("smallest static rollover margin",
                          f"{self.min_rollover:.3f} ({self.min_rollover_cart}; 1 level, 0 tipping)"
                          if self.stance.measured.any() else "not computed: no cart gives track_width and com_height"))
-        if math.isfinite(self.min_tip):
+        if self.min_tip < math.inf:  # known (-inf: an axle with no load that must hold)
             rows.append(("smallest tip margin of the tractor", f"{self.min_tip:.3f} (1 on the level, 0 the front "
                                                                "wheels lift)"))
-        if math.isfinite(self.min_grip):
+        if self.min_grip < math.inf:
             rows.append(("smallest grip margin", f"{self.min_grip:.3f} ({self.min_grip_axle}; 1 no lateral force, 0 "
                          "the tyres slide)" + ("; below 0 the no-slip model does not hold: run fidelity slip"
                                                if self.min_grip < 0 else "")))

@@ -244,10 +244,12 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
                 progress.update(out.t)
 
             gauge = MarginGauge(scene.train)
+
+            def margins(s):  # the state's tip and grip margins into the report (run/margins.py)
+                summary.add_margins(gauge.at(s.model, s.y, s.command, s.v_set, s.rate_limit, s.compiled is not False))
+
             sim, stopped = run_scene(scene, on_output=record, method=args.method, step=options["step"], rate=args.rate,
-                                     fidelity=choice.level, split_kinks=options["split_kinks"],
-                                     on_state=lambda s: summary.add_margins(
-                                         gauge.at(s.model, s.y, s.command, s.v_set, s.rate_limit)))
+                                     fidelity=choice.level, split_kinks=options["split_kinks"], on_state=margins)
     except (BagError, OSError) as err:
         progress.close()
         print(f"mta run: {err}", file=sys.stderr)
