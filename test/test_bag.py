@@ -583,6 +583,26 @@ def test_a_file_whose_only_chunk_fails_its_crc_holds_no_message(tmp_path):
     assert not holds_a_message(tmp_path / "missing.mcap")
 
 
+def test_a_message_on_a_channel_recover_drops_is_not_a_message_held(tmp_path):
+    """A message whose channel the file never registers (or registers with a lost schema) is
+    one recover() drops: the file holds no message; the same message on its channel, one."""
+    from mcap.writer import Writer
+
+    for registered in (False, True):
+        path = tmp_path / f"loose_{registered}.mcap"
+        with open(path, "wb") as f:
+            w = Writer(f, use_chunking=False)
+            w.start("ros2", "test")
+            channel = 7
+            if registered:
+                schema = w.register_schema("std_msgs/msg/Float64", "ros2msg", b"float64 data")
+                channel = w.register_channel("/power", "cdr", schema)
+            w.add_message(channel, log_time=1, data=b"\x00\x01\x00\x00" + bytes(8), publish_time=1)
+            w.finish()
+        assert holds_a_message(path) == registered
+        assert recover(path, tmp_path / f"r_{registered}.mcap")["total_messages"] == int(registered)
+
+
 def test_recover_cut_before_first_chunk(sample, tmp_path):
     """Only header and metadata survive: an empty but valid bag."""
     path, _ = sample

@@ -221,32 +221,48 @@ class _Copier:
 
 def holds_a_message(path: PathLike) -> bool:
     """Whether the file at ``path``, complete or cut short, holds a message :func:`recover`
-    would copy: one loose or in a complete, valid chunk, read from the start up to the first
-    such message (so a long bag costs one chunk). False for a file that cannot be read."""
+    would copy: one on a channel it copies (its schema known), loose or in a complete, valid
+    chunk, read from the start up to the first such message (so a long bag costs one chunk).
+    False for a file that cannot be read."""
+    seen = _Seen()
     try:
         with open(path, "rb") as f:
-            records = StreamReader(_ExactReader(f), emit_chunks=True).records
-            for record in records:
+            for record in StreamReader(_ExactReader(f), emit_chunks=True).records:
                 if isinstance(record, DataEnd):
                     return False
-                if isinstance(record, Chunk):
-                    if _chunk_holds_a_message(record):
-                        return True
-                elif isinstance(record, Message):
+                if seen.holds_a_message(_chunk_records(record) if isinstance(record, Chunk) else (record,)):
                     return True
     except (OSError, _TruncatedTail, McapError, ValueError, struct.error):
         return False
     return False
 
 
-def _chunk_holds_a_message(chunk: Chunk) -> bool:
-    """Whether ``chunk`` is one :func:`recover` copies and holds a message."""
+@dataclass
+class _Seen:
+    """The schemas and channels read so far, as recover() keeps them."""
+
+    schemas: set = field(default_factory=set)
+    channels: set = field(default_factory=set)
+
+    def holds_a_message(self, records) -> bool:
+        """Take ``records`` in order; whether one is a message recover() would copy."""
+        for record in records:
+            if isinstance(record, Schema):
+                self.schemas.add(record.id)
+            elif isinstance(record, Channel) and (record.schema_id == 0 or record.schema_id in self.schemas):
+                self.channels.add(record.id)
+            elif isinstance(record, Message) and record.channel_id in self.channels:
+                return True
+        return False
+
+
+def _chunk_records(chunk: Chunk) -> list:
+    """The records of ``chunk`` if recover() copies it (its data valid), else none."""
     try:
         data = _chunk_data(chunk)
-        return data is not None and any(isinstance(r, Message) for r in breakup_chunk(
-            replace(chunk, compression="", data=data), validate_crc=True))
+        return [] if data is None else list(breakup_chunk(replace(chunk, compression="", data=data), validate_crc=True))
     except Exception:  # noqa: BLE001 - bad CRC or undecompressable data: recover skips it too
-        return False
+        return []
 
 
 class PathRefused(BagError):
