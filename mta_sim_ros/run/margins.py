@@ -53,23 +53,27 @@ def constraint_forces(level, y, command: float, v_set: float, max_rate: float | 
 
 
 class MarginGauge:
-    """The margins of a train's states, its Stance and static axle loads built once."""
+    """The margins of a train's states, its Stance and static axle loads built once. What the
+    train cannot know (no track and height, no lateral_friction, no tip margin) costs nothing:
+    ``at`` computes the constraint forces only for a margin that needs them."""
 
     def __init__(self, train):
         self.train = train
         self.stance = Stance(train)
         self.axles = axle_names(train)
         self.loads = static_axle_loads(train)
+        self.needs_forces = train.lateral_friction is not None or (self.stance.tip is not None and self.stance.tows)
 
     def at(self, level, y, command: float, v_set: float, max_rate: float | None = None,
            compiled: bool = True) -> Margins:
         heading = np.asarray(y, dtype=float)[level.layout.heading]
         rollover, cart = math.nan, ""
-        margins = self.stance.margins(heading)
-        if not np.isnan(margins).all():  # a cart gives track and height, and the state is finite
-            k = int(np.nanargmin(margins))
-            rollover, cart = float(margins[k]), self.stance.names[k]
-        forces = constraint_forces(level, y, command, v_set, max_rate, compiled)
+        if self.stance.measured.any():
+            margins = self.stance.margins(heading)
+            if not np.isnan(margins).all():  # the state is finite
+                k = int(np.nanargmin(margins))
+                rollover, cart = float(margins[k]), self.stance.names[k]
+        forces = constraint_forces(level, y, command, v_set, max_rate, compiled) if self.needs_forces else None
         pull, grip, axle = math.nan, math.nan, ""
         if forces is not None:
             out, sc = forces
@@ -78,5 +82,5 @@ class MarginGauge:
             if not np.isnan(grips).all():
                 j = int(np.nanargmin(grips))
                 grip, axle = float(grips[j]), self.axles[j]
-        tip = float(self.stance.tip_margins(heading, pull))
+        tip = float(self.stance.tip_margins(heading, pull)) if self.stance.tip is not None else math.nan
         return Margins(rollover, cart, tip, grip, axle)
