@@ -36,6 +36,7 @@ SHARE_GLOBS = (
     'config/**/*.rviz',
     'config/**/*.json',
     'config/**/*.geojson',
+    'config/**/*.csv',  # height grids (config/terrain/)
     'launch/*.launch.py',
 )
 
@@ -134,6 +135,8 @@ setup(
         # `mta sweep` (mta_sim_ros/sweep/): the Dask engine, Parquet results, the report's tables
         # and Saltelli/Sobol. An extra: the simulator, the node and `mta run` need none of them.
         'sweep': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'pandas>=2.1.4', 'SALib>=1.5.1'],
+        # a scene's height grid from a GeoTIFF (physics/geotiff.py); .csv and .npy grids need nothing
+        'terrain': ['rasterio>=1.3.9'],
     },
     zip_safe=True,
     maintainer='mta_sim_ros maintainers',

@@ -37,6 +37,7 @@ UNIT = (
     "jit.py",
     "physics/kernel/base.py",
     "physics/kernel/laws.py",
+    "physics/kernel/relief.py",
     "physics/kernel/motion.py",
     "physics/kernel/entries.py",
     "physics/kernel/inverse.py",

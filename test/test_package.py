@@ -77,6 +77,8 @@ _PIP_ONLY = {
 }
 #: mta sweep's engine libraries, without a rosdistro key: setup.py's extra 'sweep'
 _SWEEP_EXTRA = {'dask': 'dask', 'distributed': 'dask', 'pyarrow': 'pyarrow', 'SALib': 'SALib', 'pandas': 'pandas'}
+#: a GeoTIFF height grid's reader, without a rosdistro key checked: setup.py's extra 'terrain'
+_TERRAIN_EXTRA = {'rasterio': 'rasterio'}
 
 
 def _manifest():
@@ -215,7 +217,7 @@ def test_the_launch_files_imports_are_exec_depends():
 def test_no_unknown_third_party_imports():
     """A new third-party import must be declared; then add it to the maps above."""
     own = {PKG, 'test'}
-    known = set(_ROSDEP_KEYS) | set(_PIP_ONLY) | set(_SWEEP_EXTRA) | own
+    known = set(_ROSDEP_KEYS) | set(_PIP_ONLY) | set(_SWEEP_EXTRA) | set(_TERRAIN_EXTRA) | own
     unknown = {name: where for name, where in _imported_top_level_modules().items()
                if name not in sys.stdlib_module_names and name not in known
                and not _is_ros_module(name)}
@@ -452,3 +454,16 @@ def test_every_relative_link_of_the_docs_resolves_in_the_repository():
             if not path.exists() or REPO.resolve() not in (path, *path.parents):
                 broken.append(f"{doc.relative_to(REPO)}: {target}")
     assert not broken, broken
+
+
+def test_the_terrain_extra_declares_what_a_geotiff_grid_imports():
+    """rasterio is imported only by physics/geotiff.py, lazily, and declared as setup.py's extra
+    'terrain' and in requirements.txt (what the venvs install)."""
+    setup = (REPO / 'setup.py').read_text(encoding='utf-8')
+    extra = ast.literal_eval(re.search(r"'terrain': (\[.*\])", setup).group(1))
+    reqs = (REPO / 'requirements.txt').read_text(encoding='utf-8')
+    for module, dist in _TERRAIN_EXTRA.items():
+        assert any(e.startswith(dist) for e in extra)
+        assert re.search(rf'^{dist}\b', reqs, re.M)
+        where = _imported_top_level_modules().get(module, [])
+        assert where and all(w.startswith(f'{PKG}/physics/geotiff.py:') for w in where), where

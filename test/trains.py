@@ -67,3 +67,23 @@ def random_state(model, rng, spread: float = 0.4, steering: float = 0.5, slow: b
     y[L.speed] = rng.choice([rng.uniform(-4, 4), rng.uniform(-0.08, 0.08), 0.0]) if slow else rng.uniform(-4, 4)
     y[L.governor] = rng.normal(0, 2e4)
     return y
+
+
+def energy_balance(model, y0, command, energy, duration: float = 20.0, v_set: float = 3.0):
+    """(largest |E(t) - E(0) - W(t)|, largest |E(t) - E(0)|, largest |W(t)|) along the run of
+    ``model`` from y0 steered by command(t), by DOP853 at 1e-12: W the work of traction less the
+    resistances' (integrated with the state), E = ``energy(y)`` (kinetic + potential)."""
+    from scipy.integrate import solve_ivp
+
+    def augmented(t, z):
+        dy, tm = model.derivative(z[:-1], command(t), v_set)
+        V = z[model.layout.speed]
+        return np.append(dy, tm.traction * V - sum(f * kb * V for f, kb in zip(tm.resistance, tm.chain.kapB)))
+
+    sol = solve_ivp(augmented, (0, duration), np.append(y0, 0.0), method="DOP853", rtol=1e-12, atol=1e-12,
+                    t_eval=np.linspace(0, duration, 41))
+    assert sol.success
+    energies = np.array([energy(sol.y[:-1, i]) for i in range(len(sol.t))])
+    work = sol.y[-1]
+    return (float(np.max(np.abs(energies - energies[0] - work))), float(np.max(np.abs(energies - energies[0]))),
+            float(np.max(np.abs(work))), sol)

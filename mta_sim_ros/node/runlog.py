@@ -35,9 +35,20 @@ def run_metadata(scene, sim, cfg: dict) -> dict[str, str]:
         "algorithm": "2",
         "fidelity": sim.level,
         "fidelity_reason": sim.choice.reason,
+        **terrain_record(scene),
     }
     meta.update({f"param.{k}": str(v) for k, v in cfg.items()})
     return meta
+
+
+def terrain_record(scene) -> dict[str, str]:
+    """On a height grid, its heights as read (``terrain_heights``, CSV text), its origin and spacing:
+    a bag replays and analyses without the grid's file (a GeoTIFF's placement is in the file)."""
+    relief = scene.train.relief
+    if relief is None:
+        return {}
+    return {"terrain_heights": relief.as_text(), "terrain_origin": f"{relief.origin[0]!r},{relief.origin[1]!r}",
+            "terrain_spacing": repr(relief.spacing)}
 
 
 def tick_figures(stats: TickStats, cpu_stats: TickStats) -> dict[str, str]:
@@ -89,7 +100,8 @@ def recorded_scene(meta: Mapping[str, str], bag: str) -> Scene:
     train = recorded_train(meta, bag)
     text = _recorded_text(meta, "scene_yaml", bag)
     source = f"the recorded scene {_recorded_name(meta, 'scene_file', 'scene.yaml')!r} of {bag}"
-    return load_scene_text(text, source, train)
+    recorded = {k: v for k, v in meta.items() if k.startswith("terrain_") and isinstance(v, str)}
+    return load_scene_text(text, source, train, recorded)
 
 
 def recorded_scene_name(meta: Mapping[str, str], bag: str) -> str:

@@ -141,10 +141,14 @@ class Model:
         else:
             mass, velocity_term = self._holonomic.reduce(yl, ch, V, psi_rate)
 
-        resistance = [kernel.resistance(self.P, k, kb * V, kernel.NATURAL) for k, kb in enumerate(ch.kapB)]
+        normal, grade = [1.0] * n, [0.0] * n
+        if self.P[kernel.H.relief]:  # on a height grid: each cart's grade and normal load at its C_k
+            grade, normal = self._relief_terms(yl, ch)
+        resistance = [kernel.resistance(self.P, k, kb * V, kernel.NATURAL, normal[k]) for k, kb in enumerate(ch.kapB)]
         generalized_resistance = resistance_force(resistance, ch.kapB)
-        grade = [0.0] * n
-        if self.P[kernel.H.slope]:  # the grade resistances: algorithm 2 by the chain, 1 by G^T Q_h
+        if self.P[kernel.H.relief]:
+            generalized_resistance = generalized_resistance + sum(grade)
+        elif self.P[kernel.H.slope]:  # the grade resistances: algorithm 2 by the chain, 1 by G^T Q_h
             if self.algorithm == 2:
                 grade = [kernel.grade_resistance(self.P, k, heading[k], kb, kt)
                          for k, (kb, kt) in enumerate(zip(ch.kapB, ch.kapT))]
@@ -158,6 +162,17 @@ class Model:
         else:
             acceleration = cauchy_acceleration(traction, generalized_resistance, velocity_term, mass)
         return Terms(ch, mass, velocity_term, resistance, grade, traction, psi_rate, acceleration, governor_rate)
+
+    def _relief_terms(self, yl: list, ch: Chain) -> tuple[list, list]:
+        """(F_gk, cos of the local slope) of each cart on the height grid (kernel.relief_grade), its
+        centre of mass placed from A_1 back (geometry.cart_points)."""
+        from .geometry import cart_points
+
+        n = self.layout.n
+        centres = cart_points(self.train, yl[0], yl[1], yl[2 : 2 + n])["C"].tolist()
+        pairs = [kernel.relief_grade(self.P, k, yl[2 + k], kb, kt, *centres[k])
+                 for k, (kb, kt) in enumerate(zip(ch.kapB, ch.kapT))]
+        return [p[0] for p in pairs], [p[1] for p in pairs]
 
     def _direct(self, ch: Chain, V: float) -> tuple[float, float]:
         """Algorithm 2 (``mass_terms``)."""

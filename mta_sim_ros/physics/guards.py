@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from . import kernel
-from .geometry import hitch_angles
+from .geometry import cart_points, hitch_angles
 from .steady import SteadyStateError, steady_circle
 
 JACKKNIFE_PSI = math.pi / 2
@@ -43,6 +43,15 @@ def check_state(model, t: float, y) -> None:
     if not np.all(np.isfinite(y)):
         bad = [i for i, v in enumerate(y) if not math.isfinite(v)]
         raise ModelValidityError(f"non-finite state at t = {t:.4f} s: components {bad} of {model.layout.size}", t)
+    off = int(kernel.off_relief_of(model.P, np.ascontiguousarray(y[: model.layout.n + 3], dtype=np.float64)))
+    if off >= 0:
+        grid, cart = model.train.relief, model.train.carts[off]
+        heading = [float(v) for v in y[model.layout.heading]]
+        cx, cy = cart_points(model.train, float(y[0]), float(y[1]), heading)["C"][off].tolist()
+        raise ModelValidityError(
+            f"off the terrain at t = {t:.4f} s: the centre of mass of '{cart.name}' at ({cx:.2f}, {cy:.2f}) m left the "
+            f"height grid (x in [{grid.xs[0]:g}, {grid.xs[-1]:g}], y in [{grid.ys[0]:g}, {grid.ys[-1]:g}] m)", t,
+            cart.name)
     margin, k = jackknife_margin(model, y)
     if margin <= 0.0:
         carts = model.train.carts

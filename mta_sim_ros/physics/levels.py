@@ -60,7 +60,12 @@ class Level(Protocol):
 
 
 def make_level(name: str, train: Train, algorithm: int = 2) -> Level:
-    """The level ``name`` (one of LEVELS) of ``train``."""
+    """The level ``name`` (one of LEVELS) of ``train``. On a height grid (``train.relief``) the slip
+    level and algorithm 1 are refused: their gravity is a plane's (docs/terrain.md)."""
+    if train.relief is not None and (name == "slip" or algorithm == 1):
+        what = "fidelity slip" if name == "slip" else "algorithm 1"
+        raise ValueError(f"{what} on the height grid of {train.relief.source or 'the scene'} must be the kinematic or "
+                         "dynamic level by algorithm 2: the slip level and algorithm 1 take a plane's gravity only")
     if name == "dynamic":
         return Model(train, algorithm=algorithm)
     if name == "kinematic":

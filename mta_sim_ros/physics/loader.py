@@ -29,7 +29,7 @@ import numpy as np
 from .. import validate
 from ..validate import Rule
 from . import maneuvers, spec, terrain
-from .reader import Section, SpecError, fail, parse, read, show
+from .reader import REQUIRED, Section, SpecError, fail, parse, read, show
 from .schema import (ACTUATOR, CART, DRAFT, FIDELITY_CHOICES, FORCES, FUEL, IMPLEMENT, INITIAL, INTEGRATOR,
                      MANEUVER_PARAMS, NAME_CHARS, NEEDS, ROLLING, SCENE, SPEED_COMMAND_TABLE, SPEED_TABLE, STEERING,
                      STEERING_TABLE, TERRAIN, TRACTION, TRACTION_LAWS, TRAIN)
@@ -313,30 +313,102 @@ def _needs(top: Section) -> Optional[spec.Needs]:
     return spec.Needs(**{key: NEEDS[key].read(s) for key in s.values})
 
 
-def _terrain(top: Section) -> Optional[terrain.Plane]:
-    """The plane of ``terrain`` (None: level ground), its slope at most terrain.MAX_SLOPE_DEG."""
+def _terrain(top: Section, recorded: Optional[dict] = None) -> tuple[Optional[terrain.Plane],
+                                                                    Optional[terrain.HeightGrid]]:
+    """(plane, height grid) of ``terrain``, at most one of them (both None: level ground), the
+    slope at most terrain.MAX_SLOPE_DEG; a grid as ``recorded`` (a run's record) where given,
+    else from its file."""
     if not top.has("terrain"):
-        return None
+        return None, None
     s = top.section("terrain", TERRAIN.keys)
-    values = TERRAIN.read(s, *TERRAIN.keys)
+    if s.has("heights"):
+        for key in ("grade_percent", "cross_slope_percent"):
+            if s.has(key):
+                s.fail(key, s.values[key], "not given with heights (a plane or a height grid, not both)")
+        return None, _height_grid(s, recorded)
+    for key in ("origin", "spacing"):
+        if s.has(key):
+            s.fail(key, s.values[key], "given only with heights (a height grid's file)")
+    values = TERRAIN.read(s, "grade_percent", "cross_slope_percent")
     plane = terrain.Plane(values["grade_percent"] / 100.0, values["cross_slope_percent"] / 100.0)
     steepest = math.degrees(math.atan(math.hypot(plane.grade, plane.cross_slope)))
     if steepest > terrain.MAX_SLOPE_DEG:
         s.fail("grade_percent", values["grade_percent"], f"with cross_slope_percent {values['cross_slope_percent']:g}"
                f" a slope of at most {terrain.MAX_SLOPE_DEG:g} deg (this is {steepest:.1f} deg)")
-    return plane
+    return plane, None
 
 
-def _scene(data: dict, source: str, train: Optional[spec.Train] = None) -> spec.Scene:
+def _start_on(grid: terrain.HeightGrid, train: spec.Train, initial: spec.Initial, top: Section) -> None:
+    """Every cart's centre of mass at the start on the height grid (the run stops where one leaves it)."""
+    from .geometry import cart_points
+
+    heading = [initial.heading]
+    for phi in initial.hitch_angles or (0.0,) * (train.n - 1):
+        heading.append(heading[-1] - phi)
+    for cart, (cx, cy) in zip(train.carts, cart_points(train, initial.x, initial.y, heading)["C"].tolist()):
+        if not grid.covers(cx, cy):
+            top.fail("initial", top.values.get("initial", {}), f"a start with every cart's centre of mass on the height "
+                     f"grid (x in [{grid.xs[0]:g}, {grid.xs[-1]:g}], y in [{grid.ys[0]:g}, {grid.ys[-1]:g}] m; "
+                     f"{cart.name}'s is at ({cx:.2f}, {cy:.2f}) m)")
+
+
+def _height_grid(s: Section, recorded: Optional[dict]) -> terrain.HeightGrid:
+    """The height grid of ``terrain.heights``, its file relative to the scene's folder (.csv or
+    .npy with origin and spacing, or a GeoTIFF that carries its own), or as a run ``recorded`` it
+    (its record's terrain_* texts: no file is opened)."""
+    relative = TERRAIN["heights"].read(s)
+    where = f"{s.path or 'terrain'}.heights"
+    tiff = os.path.splitext(relative)[1].lower() in (".tif", ".tiff")
+    for key in ("origin", "spacing"):
+        if tiff and s.has(key):
+            s.fail(key, s.values[key], "given only with a .csv or .npy grid (a GeoTIFF carries its own)")
+    if recorded is not None:
+        if not recorded.get("terrain_heights"):
+            s.fail("heights", relative, "recorded with the scene (the run's terrain_heights): no file is opened")
+        heights = terrain.heights_from_text(recorded["terrain_heights"], where, s.source)
+        origin, spacing = _recorded_placement(recorded) if tiff else _placement(s)
+        return terrain.grid_from(heights, origin, spacing, where, s.source)
+    path = os.path.normpath(os.path.join(os.path.dirname(s.source), relative))
+    if tiff:
+        from .geotiff import read_geotiff
+
+        if not os.path.isfile(path):
+            s.fail("heights", relative, f"a GeoTIFF, relative to the scene's folder (not found: {path})")
+        heights, origin, spacing = read_geotiff(path, where, s.source)
+        return terrain.grid_from(heights, list(origin), spacing, where, s.source)
+    origin, spacing = _placement(s)
+    return terrain.grid_from(terrain.read_heights(path, where, s.source), origin, spacing, where, s.source)
+
+
+def _placement(s: Section) -> tuple[list, float]:
+    """(origin, spacing) of a .csv or .npy grid, as the scene gives them."""
+    origin = TERRAIN["origin"].read(s)
+    if len(origin) != 2:
+        s.fail("origin", s.values["origin"], "two numbers [x, y], m")
+    return list(origin), TERRAIN["spacing"].read(s, default=REQUIRED)
+
+
+def _recorded_placement(recorded: dict) -> tuple[object, object]:
+    """(origin, spacing) of a GeoTIFF's grid as a run recorded them (grid_from checks them)."""
+    try:
+        origin = [float(v) for v in str(recorded.get("terrain_origin", "")).split(",")]
+        return origin, float(recorded.get("terrain_spacing", ""))
+    except ValueError:
+        return recorded.get("terrain_origin"), recorded.get("terrain_spacing")
+
+
+def _scene(data: dict, source: str, train: Optional[spec.Train] = None, recorded: Optional[dict] = None) -> spec.Scene:
     top = Section(data, "", source, SCENE.keys)
     if train is None:
         train = _scene_train(top)
     else:
         SCENE["train"].read(top)  # still a required field; the train itself is the one given
-    plane = _terrain(top)
-    if plane is not None:  # the train on its ground: every level packs the plane's gravity
-        train = dataclasses.replace(train, terrain=plane)
+    plane, grid = _terrain(top, recorded)
+    if plane is not None or grid is not None:  # the train on its ground: every level packs its gravity
+        train = dataclasses.replace(train, terrain=plane, relief=grid)
     initial = _initial(top, train)
+    if grid is not None:
+        _start_on(grid, train, initial, top)
     speed = _speed(top)
     publish_rate = SCENE["publish_rate"].read(top)
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
@@ -381,11 +453,12 @@ def load_scene(path: Union[str, os.PathLike]) -> spec.Scene:
     return _scene(*read(path))
 
 
-def load_scene_text(text: str, source: str, train: spec.Train) -> spec.Scene:
-    """Check a scene given as YAML text with its train given too (a bag records both): no file
-    is opened, whatever the scene's ``train:`` names."""
+def load_scene_text(text: str, source: str, train: spec.Train, recorded: Optional[dict] = None) -> spec.Scene:
+    """Check a scene given as YAML text with its train given too (a bag records both), and a
+    height grid as ``recorded`` (the run record's terrain_heights, terrain_origin and
+    terrain_spacing): no file is opened, whatever the scene's ``train:`` or ``terrain.heights`` name."""
     data, source = parse(text, source)
-    return _scene(data, source, train)
+    return _scene(data, source, train, recorded or {})
 
 
 # --------------------------------------------------------------------------- any file

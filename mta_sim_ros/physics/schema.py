@@ -341,13 +341,26 @@ NEEDS = Schema("Needs", "needs", "What the scene needs from the simulator: the o
                "level predicted to meet them.", tuple(
     Field(key, NUMBER, _NEED[key][0], _NEED[key][1], POSITIVE, None, default_text="not needed")
     for key in spec.Needs.__dataclass_fields__), notes=("at least one field",))
-TERRAIN = Schema("Terrain", "terrain", "The plane the train moves in: its rise per 100 m along the world's x and y "
-                 "axes. The scene's positions (initial, and every x, y of the run) are measured along the ground, "
-                 "in the plane's own frame; the outputs' 3D poses place them in the world (docs/terrain.md).", (
-    Field("grade_percent", NUMBER, "rise per 100 m horizontally along the world's x axis (> 0: uphill to +x)", "%",
-          GRADE, 0.0),
-    Field("cross_slope_percent", NUMBER, "rise per 100 m horizontally along the world's y axis", "%", GRADE, 0.0),
-), notes=(f"the plane's slope at most {terrain.MAX_SLOPE_DEG:g} deg",))
+TERRAIN = Schema("Terrain", "terrain", "The ground the train moves on: a plane (its rise per 100 m along the world's x "
+                 "and y axes) or a height grid (a .csv or .npy file of heights, or a GeoTIFF). On a plane the scene's positions "
+                 "(initial, and every x, y of the run) are measured along the ground, in the plane's own frame; on a "
+                 "height grid they are horizontal. The outputs' 3D poses place them in the world (docs/terrain.md).", (
+    Field("grade_percent", NUMBER, "a plane's rise per 100 m horizontally along the world's x axis (> 0: uphill to "
+          "+x)", "%", GRADE, 0.0),
+    Field("cross_slope_percent", NUMBER, "a plane's rise per 100 m horizontally along the world's y axis", "%", GRADE,
+          0.0),
+    Field("heights", TEXT, "a height grid's file, relative to the scene's folder: .npy, or .csv with one row of "
+          "heights (m) a line, rows along +y, columns along +x, or a GeoTIFF in a projected CRS in metres (its "
+          "own placement: no origin, spacing)", default=None, default_text="a plane",
+          rule_text=f"a grid of finite numbers, at least {terrain.MIN_NODES} x {terrain.MIN_NODES} and at most "
+          f"{terrain.MAX_NODES} nodes, at most {terrain.MAX_FILE_BYTES // 2**20} MiB"),
+    Field("origin", NUMBERS, "the world (x, y) of the grid's first node (first row, first column)", "m", POSITION,
+          (0.0, 0.0), also="two numbers"),
+    Field("spacing", NUMBER, "the distance between neighbouring nodes of the grid, along x and y", "m",
+          _span(0.01, 1e5, "m"), None, default_text="required with heights"),
+), notes=(f"the slope at most {terrain.MAX_SLOPE_DEG:g} deg (a grid's between any two neighbouring nodes)",
+          "heights with origin and spacing, or grade_percent and cross_slope_percent: not both",
+          "on a height grid the train stays on the grid (a run stops where a cart's centre of mass leaves it)"))
 SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, steering and speed commands, "
                "duration, integrator (config/scenes/*.yaml).", (
     Field("name", TEXT, "the scene's name: it names the bag of a run (bags/<name>.mcap)",
@@ -366,7 +379,8 @@ SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, 
           choices=FIDELITY_CHOICES, default=spec.Scene.fidelity),
     Field("needs", MAPPING, "the outputs the scene needs and their tolerances", default=None,
           default_text="not stated (auto keeps the dynamic level)", schema=NEEDS),
-    Field("terrain", MAPPING, "the plane the train moves in", default=None, default_text="level ground",
+    Field("terrain", MAPPING, "the ground the train moves on: a plane or a height grid", default=None,
+          default_text="level ground",
           schema=TERRAIN),
 ))
 

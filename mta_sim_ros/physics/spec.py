@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
-from .terrain import Plane
+from .terrain import HeightGrid, Plane
 
 GRAVITY = 9.80665  # m/s^2, standard gravity
 
@@ -150,6 +150,8 @@ class Train:
     source: str = ""  # the file it came from, for messages
     # the plane the train moves in (a scene's terrain; None: the level): x, y are along it
     terrain: Optional[Plane] = None
+    # the height grid the train moves on (a scene's terrain; None: none): x, y are horizontal
+    relief: Optional[HeightGrid] = None
 
     @property
     def n(self) -> int:

@@ -161,20 +161,28 @@ def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:
 
 
 class Stance:
-    """Each cart's roll and pitch on the train's plane and its static rollover margin (the carts
-    with track_width and com_height), from the headings alone, and the tractor's tip margin with
-    the drawbar pull besides: with F the plane's frame, a body of
-    heading th has R = F Rz(th), so R[2, 0] = F20 cos th + F21 sin th, R[2, 1] = F21 cos th - F20
-    sin th, R[2, 2] = F22 (``PlaneFrame.roll_pitch``, vectorised)."""
+    """Each cart's roll and pitch on the train's ground and its static rollover margin (the carts
+    with track_width and com_height), and the tractor's tip margin with the drawbar pull besides.
+    On a plane they follow from the headings alone: with F the plane's frame, a body of heading th
+    has R = F Rz(th), so R[2, 0] = F20 cos th + F21 sin th, R[2, 1] = F21 cos th - F20 sin th,
+    R[2, 2] = F22 (``PlaneFrame.roll_pitch``, vectorised). On a height grid each cart stands on the
+    surface at its centre of mass C_k (placed from A_1, ``a1``, back along the headings), of
+    gradient G: with along = G . e, across = G . n, w = sqrt(1 + |G|^2),
+    R20 = along / sqrt(1 + along^2), R21 = across / (w sqrt(1 + along^2)), R22 = 1 / w
+    (``orientation``)."""
 
     def __init__(self, train):
         frame = PlaneFrame.of(train.terrain) if train.terrain is not None else PlaneFrame.of(Plane(0.0, 0.0))
-        self.level = train.terrain is None
+        self.relief = train.relief
+        self.level = train.terrain is None and train.relief is None
         self.f20, self.f21, self.f22 = frame.x[2], frame.y[2], frame.z[2]
         self.names = [c.name for c in train.carts]
         self.measured = np.array([c.track_width is not None for c in train.carts])
         self.track = np.array([c.track_width or 1.0 for c in train.carts])
         self.height = np.array([c.com_height or 0.0 for c in train.carts])
+        #: A_k to C_k and A_k to A_{k+1} along e_k, m (a height grid's C_k, ``centres``)
+        self.to_com = np.array([c.length - c.com_offset for c in train.carts])
+        self.to_next = np.array([c.length + c.hitch_offset for c in train.carts])
         from .loads import hitch_loads  # (loads.py reads this module's PlaneFrame)
 
         tractor = train.carts[0]
@@ -184,20 +192,43 @@ class Stance:
         self.tip = (tractor.com_offset, tractor.com_height, tractor.hitch_height or 0.0, tractor.mass * train.gravity,
                     float(hitch_loads(train)[1]) * tractor.hitch_offset) if known else None
 
-    def angles(self, heading) -> tuple[np.ndarray, np.ndarray]:
-        """(roll, pitch) of every cart, rad (REP-103)."""
-        c, s = np.cos(heading), np.sin(heading)
-        r20 = self.f20 * c + self.f21 * s
-        r21 = self.f21 * c - self.f20 * s
-        return np.arctan2(r21, self.f22), -np.arcsin(np.clip(r20, -1.0, 1.0))
+    def centres(self, heading, a1) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) of every cart's C_k (rows x carts) from A_1 = ``a1`` ((x, y), each a number or
+        rows) and the headings (rows x carts)."""
+        th = np.asarray(heading, dtype=float)
+        ex, ey = np.cos(th), np.sin(th)
+        ax = np.asarray(a1[0], dtype=float)[..., None] - np.cumsum(self.to_next * ex, axis=-1) + self.to_next * ex
+        ay = np.asarray(a1[1], dtype=float)[..., None] - np.cumsum(self.to_next * ey, axis=-1) + self.to_next * ey
+        return ax - self.to_com * ex, ay - self.to_com * ey
 
-    def margins(self, heading) -> np.ndarray:
+    def rotation_rows(self, heading, a1=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(R20, R21, R22) of every cart (the class docstring); ``a1`` is needed on a height grid."""
+        th = np.asarray(heading, dtype=float)
+        c, s = np.cos(th), np.sin(th)
+        if self.relief is None:
+            return self.f20 * c + self.f21 * s, self.f21 * c - self.f20 * s, np.full(th.shape, self.f22)
+        if a1 is None:
+            raise ValueError("Stance on a height grid needs the position of A_1")
+        from .kernel import surfaces_of
+
+        cx, cy = self.centres(th, a1)
+        _, gx, gy = (v.reshape(cx.shape) for v in surfaces_of(self.relief.block, cx.ravel(), cy.ravel()))
+        along, across = gx * c + gy * s, gy * c - gx * s
+        w, u = np.sqrt(1.0 + gx * gx + gy * gy), np.sqrt(1.0 + along * along)
+        return along / u, across / (w * u), 1.0 / w
+
+    def angles(self, heading, a1=None) -> tuple[np.ndarray, np.ndarray]:
+        """(roll, pitch) of every cart, rad (REP-103)."""
+        r20, r21, r22 = self.rotation_rows(heading, a1)
+        return np.arctan2(r21, r22), -np.arcsin(np.clip(r20, -1.0, 1.0))
+
+    def margins(self, heading, a1=None) -> np.ndarray:
         """The static rollover margin of every cart (NaN where track and height are not given)."""
-        roll, pitch = self.angles(heading)
+        roll, pitch = self.angles(heading, a1)
         m = 1.0 - 2.0 * self.height * np.abs(np.tan(roll)) / self.track
         return np.where(self.measured, m, np.nan)
 
-    def tip_margins(self, heading, pull) -> np.ndarray:
+    def tip_margins(self, heading, pull, a1=None) -> np.ndarray:
         """The tractor's longitudinal tip margin (``tip_margin``) at each row of ``heading`` (rows x
         carts) with the drawbar pull ``pull`` along its axis (rows, N); NaN where it is not known: the
         tractor gives no com_height, or tows and gives no hitch_height, or its centre of mass is not
@@ -206,36 +237,47 @@ class Stance:
         th = np.asarray(heading)[..., 0]
         if self.tip is None:
             return np.full(np.shape(th), np.nan)
-        c, s = np.cos(th), np.sin(th)
         pull = np.asarray(pull, dtype=float) if self.tows else np.zeros(np.shape(th))
-        return tip_margin(*self.tip, self.f20 * c + self.f21 * s, self.f22, pull)
+        r20, _, r22 = self.rotation_rows(np.asarray(heading)[..., :1], a1)
+        return tip_margin(*self.tip, r20[..., 0], r22[..., 0], pull)
 
 
 class HeightGrid:
     """A regular grid of heights (rows along y), interpolated by a bicubic spline through every
-    node. Built from checked arrays only: :func:`grid_from` checks them."""
+    node (scipy's RectBivariateSpline, s = 0, fits it; kernel/relief.py evaluates it, in the
+    equations and here alike). Built from checked arrays only: :func:`grid_from` checks them."""
 
-    def __init__(self, heights: np.ndarray, origin: tuple[float, float], spacing: float):
+    def __init__(self, heights: np.ndarray, origin: tuple[float, float], spacing: float, source: str = ""):
         from scipy.interpolate import RectBivariateSpline
 
         self.heights = heights
-        self.origin, self.spacing = origin, spacing
+        self.origin, self.spacing, self.source = origin, spacing, source
         ny, nx = heights.shape
         self.xs = origin[0] + spacing * np.arange(nx)
         self.ys = origin[1] + spacing * np.arange(ny)
-        self._spline = RectBivariateSpline(self.ys, self.xs, heights, kx=3, ky=3, s=0)
+        ty, tx, coefficients = RectBivariateSpline(self.ys, self.xs, heights, kx=3, ky=3, s=0).tck
+        #: (knots along y, knots along x, coefficients rows along y, flat): what the kernel packs
+        self.spline = (ty, tx, coefficients)
+        self.block = np.concatenate(([len(ty), len(tx)], ty, tx, coefficients)).astype(np.float64)
 
     def covers(self, x: float, y: float) -> bool:
-        return self.xs[0] <= x <= self.xs[-1] and self.ys[0] <= y <= self.ys[-1]
+        return bool(self.xs[0] <= x <= self.xs[-1] and self.ys[0] <= y <= self.ys[-1])
 
     def at(self, x: float, y: float) -> Surface:
         if not self.covers(x, y):
             raise OffTerrain(f"({x:.3f}, {y:.3f}) m is off the terrain grid x in [{self.xs[0]:g}, {self.xs[-1]:g}], "
                              f"y in [{self.ys[0]:g}, {self.ys[-1]:g}] m")
-        z = float(self._spline(y, x)[0, 0])
-        dzdy = float(self._spline(y, x, dx=1)[0, 0])
-        dzdx = float(self._spline(y, x, dy=1)[0, 0])
-        return Surface(z, dzdx, dzdy)
+        from .kernel import surface_of
+
+        return Surface(*surface_of(self.block, float(x), float(y)))
+
+    def as_text(self) -> str:
+        """The heights as CSV text (every digit: a run's record, ``heights_from_text`` reads it)."""
+        return "\n".join(",".join(repr(float(v)) for v in row) for row in self.heights) + "\n"
+
+    def __repr__(self) -> str:
+        ny, nx = self.heights.shape
+        return f"HeightGrid({ny} x {nx} nodes, origin {self.origin}, spacing {self.spacing:g} m)"
 
 
 def orientation(heading: float, surface: Surface) -> tuple[float, float]:
@@ -308,7 +350,7 @@ def grid_from(heights: object, origin: object, spacing: object, where: str = "te
     if math.degrees(math.atan(steepest)) > MAX_SLOPE_DEG:
         fail("heights", f"a rise of {steepest * spacing:g} m over {spacing:g} m between neighbouring nodes",
              f"a slope of at most {MAX_SLOPE_DEG:g} deg", where, source)
-    return HeightGrid(h, (float(origin[0]), float(origin[1])), float(spacing))
+    return HeightGrid(h, (float(origin[0]), float(origin[1])), float(spacing), source)
 
 
 def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = "") -> np.ndarray:
@@ -334,3 +376,24 @@ def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = 
              where, source)
     fail("file", show(str(path)), "a .npy or .csv grid of heights", where, source)
 
+
+def heights_from_text(text: str, where: str = "terrain", source: str = "") -> np.ndarray:
+    """The heights of CSV text (a run's record of its grid, ``HeightGrid.as_text``)."""
+    import io
+
+    if not isinstance(text, str) or len(text) > MAX_FILE_BYTES:
+        fail("heights", "the recorded grid", f"CSV text of at most {MAX_FILE_BYTES} bytes", where, source)
+    try:
+        return np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2)
+    except ValueError as err:
+        fail("heights", "the recorded grid", f"a grid of numbers ({str(err).splitlines()[0] if str(err) else err!r})",
+             where, source)
+
+
+def heading_of(x: float, y: float, z: float, w: float) -> float:
+    """The horizontal heading, rad, of a body whose orientation is the quaternion (x, y, z, w): the
+    direction of its x axis projected on the level, atan2(R10, R00); a turn about z alone gives
+    2 atan2(z, w) exactly (the level's and a plane's poses), a pose on a height grid its yaw."""
+    if x == 0.0 and y == 0.0:
+        return 2.0 * math.atan2(z, w)
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

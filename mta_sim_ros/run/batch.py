@@ -202,7 +202,9 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         "min_jackknife_margin_deg": math.degrees(float(np.min(trace[:, whole.TR_MARGIN]))) if n > 1 else math.nan,
         "distance_m": float(travelled[0]),
     }
-    out.update(stance_metrics(train, th, cart[:, 0, whole.TR_PULL]))
+    front = train.carts[0].length  # A_1 = B_1 + l_1 e_1 (a height grid's stance needs it)
+    a1 = (bx[:, 0] + front * np.cos(th[:, 0]), by[:, 0] + front * np.sin(th[:, 0]))
+    out.update(stance_metrics(train, th, cart[:, 0, whole.TR_PULL], a1))
     out["min_grip_margin"] = float(np.min(grip_margins(train, trace[:, whole.TR_FRONT_LAT], cart[:, :, whole.TR_LAT])))
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
@@ -250,18 +252,18 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     return {name: out[name] for name in metric_names(n)}
 
 
-def stance_metrics(train, heading: np.ndarray, pull: np.ndarray) -> dict:
+def stance_metrics(train, heading: np.ndarray, pull: np.ndarray, a1=None) -> dict:
     """The largest |roll| and |pitch| (deg) of any cart, the smallest static rollover margin
     (NaN: no cart gives track_width and com_height) over ``heading``, rows x carts, and the
     tractor's smallest tip margin with the drawbar pull ``pull`` along its axis (rows; NaN: not
-    known, Stance.tip_margins)."""
+    known, Stance.tip_margins). ``a1``: (x, y) rows of A_1, which a height grid needs."""
     stance = Stance(train)
-    roll, pitch = stance.angles(heading)
-    margins = stance.margins(heading)[:, stance.measured]
+    roll, pitch = stance.angles(heading, a1)
+    margins = stance.margins(heading, a1)[:, stance.measured]
     return {"max_roll_deg": math.degrees(float(np.max(np.abs(roll)))),
             "max_pitch_deg": math.degrees(float(np.max(np.abs(pitch)))),
             "min_rollover_margin": float(np.min(margins)) if margins.size else math.nan,
-            "min_tip_margin": float(np.min(stance.tip_margins(heading, pull)))}
+            "min_tip_margin": float(np.min(stance.tip_margins(heading, pull, a1)))}
 
 
 def kernel_compiled() -> bool:

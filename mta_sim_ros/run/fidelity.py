@@ -231,6 +231,9 @@ def choose(scene: Scene, forced: str | None = None) -> Choice:
         return Choice(scene.fidelity, f"{scene.fidelity}: the scene states fidelity: {scene.fidelity}")
     if scene.needs is None:
         return Choice("dynamic", "dynamic: auto, and the scene states no needs: the article's model")
+    if scene.train.relief is not None:  # the slip level takes a plane only, and no prediction reads a grid
+        return Choice("dynamic", "dynamic: auto on a height grid, the highest level that runs on one (the "
+                                 "predictions read no grid)")
     needs = scene.needs.asked()
     est = _estimate_cached(scene)
     for level in LEVELS:

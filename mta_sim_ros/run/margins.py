@@ -21,6 +21,7 @@ class Margins:
     tip: float  # the tractor's (NaN: not known, Stance.tip_margins)
     grip: float  # the smallest of the no-slip axles (NaN: no lateral_friction, or no constraint forces)
     grip_axle: str
+    drift_modelled: bool = True  # fidelity slip can run this ground (not a height grid)
 
     def problems(self) -> list[str]:
         """What is past a limit, one phrase each (none when every margin is positive or unknown)."""
@@ -31,7 +32,9 @@ class Margins:
             out.append(f"tip margin {self.tip:.2f}: the tractor's front wheels lift")
         if self.grip < 0:
             out.append(f"grip margin {self.grip:.2f} at {self.grip_axle}: it needs more lateral force than "
-                       "friction gives, so the no-slip model does not hold (fidelity slip models the drift)")
+                       "friction gives, so the no-slip model does not hold " + (
+                           "(fidelity slip models the drift)" if self.drift_modelled else
+                           "(the slip level, which models the drift, takes a plane only)"))
         return out
 
 
@@ -66,10 +69,11 @@ class MarginGauge:
 
     def at(self, level, y, command: float, v_set: float, max_rate: float | None = None,
            compiled: bool = True) -> Margins:
-        heading = np.asarray(y, dtype=float)[level.layout.heading]
+        state = np.asarray(y, dtype=float)
+        heading, a1 = state[level.layout.heading], (state[0], state[1])  # A_1 (a height grid's stance)
         rollover, cart = math.nan, ""
         if self.stance.measured.any():
-            margins = self.stance.margins(heading)
+            margins = self.stance.margins(heading, a1)
             if not np.isnan(margins).all():  # the state is finite
                 k = int(np.nanargmin(margins))
                 rollover, cart = float(margins[k]), self.stance.names[k]
@@ -82,5 +86,5 @@ class MarginGauge:
             if not np.isnan(grips).all():
                 j = int(np.nanargmin(grips))
                 grip, axle = float(grips[j]), self.axles[j]
-        tip = float(self.stance.tip_margins(heading, pull)) if self.stance.tip is not None else math.nan
-        return Margins(rollover, cart, tip, grip, axle)
+        tip = float(self.stance.tip_margins(heading, pull, a1)) if self.stance.tip is not None else math.nan
+        return Margins(rollover, cart, tip, grip, axle, self.train.relief is None)

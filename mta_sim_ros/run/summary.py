@@ -45,18 +45,22 @@ class RunSummary:
         self.max_hitch = [max(m, abs(a)) for m, a in zip(self.max_hitch, out.hitch_angle)]
         self.min_jackknife_margin = min(self.min_jackknife_margin, out.jackknife_margin)
         if self.stance is not None and not self.stance.level:
-            self._add_stance(out.heading)
+            self._add_stance(out.heading, out.front[0])
         self._last = out
 
-    def _add_stance(self, heading) -> None:
-        roll, pitch = self.stance.angles(heading)
+    def _add_stance(self, heading, a1) -> None:
+        roll, pitch = self.stance.angles(heading, a1)
         self.max_roll = max(self.max_roll, float(np.max(np.abs(roll))))
         self.max_pitch = max(self.max_pitch, float(np.max(np.abs(pitch))))
-        margins = self.stance.margins(heading)
+        margins = self.stance.margins(heading, a1)
         if self.stance.measured.any():
             k = int(np.nanargmin(margins))
             if margins[k] < self.min_rollover:
                 self.min_rollover, self.min_rollover_cart = float(margins[k]), self.stance.names[k]
+
+    def _slip_advice(self) -> str:
+        relief = self.stance is not None and self.stance.relief is not None
+        return "the slip level, which models the drift, takes a plane only" if relief else "run fidelity slip"
 
     def add_margins(self, margins) -> None:
         """Take the tip and grip margins of one sample (run/margins.Margins; NaN: not known)."""
@@ -96,7 +100,7 @@ class RunSummary:
                                                                "wheels lift)"))
         if self.min_grip < math.inf:
             rows.append(("smallest grip margin", f"{self.min_grip:.3f} ({self.min_grip_axle}; 1 no lateral force, 0 "
-                         "the tyres slide)" + ("; below 0 the no-slip model does not hold: run fidelity slip"
+                         "the tyres slide)" + (f"; below 0 the no-slip model does not hold: {self._slip_advice()}"
                                                if self.min_grip < 0 else "")))
         rows.extend((extra or {}).items())
         lines = [f"# {title}", "", "| quantity | value |", "|---|---|"]

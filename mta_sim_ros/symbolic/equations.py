@@ -73,6 +73,12 @@ def build(train) -> Equations:
     grade = [] if train.terrain is None else [  # kernel.grade_resistance on symbols
         -mk * (gx * (kb * sp.cos(t) - ck * kt * sp.sin(t)) + gy * (kb * sp.sin(t) + ck * kt * sp.cos(t)))
         for mk, ck, t, kb, kt in zip(m, c, th, ch.kapB, ch.kapT)]
+    slopes = ()
+    if train.relief is not None:  # kernel.relief_grade on symbols: grad z at C_k = (G_xk, G_yk), a function of the pose
+        g = sp.Symbol("g", positive=True)
+        slopes = (g, *(sp.Symbol(f"G_x{k}") for k in idx), *(sp.Symbol(f"G_y{k}") for k in idx))
+        grade = [mk * g * (Gx * (kb * sp.cos(t) - ck * kt * sp.sin(t)) + Gy * (kb * sp.sin(t) + ck * kt * sp.cos(t)))
+                 for mk, ck, t, kb, kt, Gx, Gy in zip(m, c, th, ch.kapB, ch.kapT, slopes[1:n + 1], slopes[n + 1:])]
     resisting = resistance_force(FB, ch.kapB) + sum(grade)
     force = F - resisting
     accel = cauchy_acceleration(F, resisting, velocity_term, mass)
@@ -89,9 +95,9 @@ def build(train) -> Equations:
         "s'_Bk": own.kapB[0] * Vk,
         "s'_Ck": own.kapC[0] * Vk,
     }
-    symbols = {str(s): s for s in (*th, psi1, rate, V, *l, *a, *c, *m, *J, F, *FB, *((gx, gy) if grade else ()))}
-    values = {}
-    if grade:
+    symbols = {str(s): s for s in (*th, psi1, rate, V, *l, *a, *c, *m, *J, F, *FB, *((gx, gy) if train.terrain is not None else ()), *slopes)}
+    values = {slopes[0]: train.gravity} if slopes else {}
+    if train.terrain is not None:
         from ..physics.terrain import PlaneFrame
 
         values[gx], values[gy], _ = PlaneFrame.of(train.terrain).gravity(train.gravity)
@@ -131,11 +137,15 @@ def render(eq: Equations, fmt: str = "markdown", numbers: bool = False, expand_u
         parts += [f"draft {d.soil_factor:g} x ({d.A:g} + {d.B:g} S + {d.C:g} S^2) x {d.width:g} x {d.depth:g}"
                   for d in tr.draft if d.cart == c.name]
         forces.append(f"- (F_B{k}, s'_B{k}): at B_{k}, against its motion" + (f": {', '.join(parts)}" if parts else ""))
-    if eq.grade:
+    if eq.grade and tr.terrain is not None:
         gx, gy = eq.values[eq.symbols["g_x"]], eq.values[eq.symbols["g_y"]]
         forces.append(f"- (F_gk, V) for each cart: gravity's component in the plane g_p = (g_x, g_y) = ({gx:.6g}, "
                       f"{gy:.6g}) m/s^2 at C_k (terrain: grade {tr.terrain.grade:g}, cross slope "
                       f"{tr.terrain.cross_slope:g}), F_gk = -m_k g_p . v_Ck / V, v_Ck / V = kapB_k e_k + c_k kapT_k n_k")
+    if tr.relief is not None:
+        forces.append(f"- (F_gk, V) for each cart on the height grid {tr.relief!r}: the potential m_k g z(C_k), "
+                      "F_gk = m_k g (G_xk, G_yk) . v_Ck / V, (G_xk, G_yk) = grad z at C_k (the grid's bicubic spline, "
+                      "a function of the pose), v_Ck / V = kapB_k e_k + c_k kapT_k n_k; x, y horizontal")
     out += ["", "Force elements (force, the speed of its point):", "", *forces, ""]
     out += ["## The recursion (cart k from cart k-1; psi_1 the steering angle, V_1 = V)", ""]
     out += block([(name, show(expr)) for name, expr in eq.recursion.items()])

@@ -5,6 +5,7 @@ plain Python: ``jit.py``). One compile unit with ``integrate/rk.py`` (the steppe
     base.py      the layout of the arrays (packed constants, state, records), law and branch codes
     packing.py   the train's constants packed (plain Python)
     laws.py      steering actuator, resistances, traction limits, switch layout
+    relief.py    a height grid's surface and each cart's grade resistance on it
     motion.py    rhs (chain walk + algorithm 2 + force laws), margin, outputs, drawbar pulls, switches
     entries.py   what Python calls, compiled and cached
     inverse.py   the kinematic chain inverted: the pose and steering that keep a cart's point on a path
@@ -15,4 +16,5 @@ from .base import *  # noqa: F401,F403
 from .entries import *  # noqa: F401,F403
 from .laws import *  # noqa: F401,F403
 from .motion import *  # noqa: F401,F403
+from .relief import *  # noqa: F401,F403
 from .packing import column, max_rate_of, pack  # noqa: F401

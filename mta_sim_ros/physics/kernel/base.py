@@ -72,6 +72,8 @@ HEAD = Fields("Head", (
     ("slope", "1 on a tilted plane (the train's terrain): every cart has a grade resistance", lambda s: s.slope),
     ("gravity_x", "gravity's component along the plane's x axis, m/s^2 (0 on the level)", lambda s: s.gravity[0]),
     ("gravity_y", "gravity's component along the plane's y axis, m/s^2", lambda s: s.gravity[1]),
+    ("gravity", "g, m/s^2", lambda s: s.train.gravity),
+    ("relief", "index in P of the height grid's RELIEF block (relief.py), 0 without one", lambda s: s.relief),
 ))
 
 CART = Fields("Cart", (

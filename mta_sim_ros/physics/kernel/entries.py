@@ -8,6 +8,7 @@ from ...jit import entry
 from .base import FORCE_SWITCHES, HIGH, LOW, NATURAL, OUT, REC, SCALARS, H, no_mode
 from .laws import actuator_release, branches
 from .motion import drawbar_pulls, margin, outputs, rhs, switches
+from .relief import off_relief, surface
 
 
 @entry
@@ -78,3 +79,24 @@ def switches_of(P, y, command, v_set):
 def release_of(P, psi1, command, max_rate):
     """``actuator_release``."""
     return actuator_release(P, psi1, command, max_rate)
+
+
+@entry
+def surface_of(block, x, y):
+    """``relief.surface`` of a RELIEF block alone (terrain.HeightGrid.at): (z, dz/dx, dz/dy)."""
+    return surface(block, 0, x, y)
+
+
+@entry
+def surfaces_of(block, xs, ys):
+    """``surface_of`` at each point of the flat arrays xs, ys: (z, dz/dx, dz/dy) arrays."""
+    z, zx, zy = np.empty(xs.shape[0]), np.empty(xs.shape[0]), np.empty(xs.shape[0])
+    for i in range(xs.shape[0]):
+        z[i], zx[i], zy[i] = surface(block, 0, xs[i], ys[i])
+    return z, zx, zy
+
+
+@entry
+def off_relief_of(P, y):
+    """``relief.off_relief``: the first cart off the height grid, -1 for none."""
+    return off_relief(P, y)

@@ -54,14 +54,15 @@ def held_abs(x, branch):
 
 
 @jitable
-def resistance(P, k, axle_speed, branch):
+def resistance(P, k, axle_speed, branch, normal=1.0):
     """The resistance F_Bk at cart k's axle B_k, N, signed against its speed s'_Bk = ``axle_speed``
     (MODEL.md, force laws): (f m g + sum of the drafts D = F_i (A + B S + C S^2) W T) tanh(s'_Bk / v0),
     S = |s'_Bk| in km/h (ASABE D497), v0 the smoothing speed. ``branch``: the sign of the speed held
-    in the draft's |S| (see held_abs); the tanh is smooth and follows the state."""
+    in the draft's |S| (see held_abs); the tanh is smooth and follows the state. ``normal``: the
+    cosine of the local slope on a height grid (relief.relief_grade), which scales f m g."""
     b = HEAD_SIZE + CART_SIZE * k
     first, count = int(P[b + C.draft_first]), int(P[b + C.draft_count])
-    total = P[b + C.rolling]
+    total = P[b + C.rolling] * normal
     base = HEAD_SIZE + CART_SIZE * int(P[H.n])
     for i in range(first, first + count):
         d = base + DRAFT_SIZE * i

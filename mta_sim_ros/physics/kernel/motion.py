@@ -54,6 +54,7 @@ from .base import (
     wrap_angle,
 )
 from .laws import grade_resistance, resistance, steering_rate, switch_layout, traction_law, traction_limit
+from .relief import off_relief, relief_grade, surface
 
 
 @jitable
@@ -81,10 +82,11 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
     th'_k = kap_k sin(psi_k) V / l_k, s'_Bk = kap_k cos(psi_k) V, s'_Ck = kap_k rc_k V; each rate
     ``*_dot`` is the exact time derivative of the line above it. Algorithm 2 (dynamics.py):
     M = sum m kapC^2 + J kapT^2, R = 1/2 M' V, M V' = F_A1 - sum F_Bk kapB_k - sum F_gk - R, F_gk the
-    grade resistances on a tilted plane (``grade_resistance``; absent on the level)."""
+    grade resistances (``ground``: a tilted plane's, a height grid's at C_k; absent on the level)."""
     n = int(P[H.n])
     forces_on = int(P[H.law]) != KINEMATIC
-    sloped, held, i_speed = P[H.slope] != 0.0, mode.shape[0] > 0, switch_layout(P)[4]
+    sloped, held, i_speed, relief = P[H.slope] != 0.0, mode.shape[0] > 0, switch_layout(P)[4], P[H.relief] != 0.0
+    ax, ay = y[0], y[1]  # A_k (placed on a height grid only)
     psi1, V, z = y[n + 2], y[n + 3], y[n + 4]
     psi_rate = steering_rate(P, psi1, command, max_rate, mode[0] if held else NATURAL)
 
@@ -116,9 +118,9 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
             if held and i_speed >= 0 and P[b + C.draft_count] > 0:
                 branch = mode[1 + i_speed]
                 i_speed += 1
-            force = resistance(P, k, b_val * V, branch)
+            grade, normal, ax, ay = ground(P, k, y[2 + k], b_val, t_val, ax, ay, relief, sloped)
+            force = resistance(P, k, b_val * V, branch, normal)
             generalized_resistance += force * b_val
-            grade = grade_resistance(P, k, y[2 + k], b_val, t_val) if sloped else 0.0
             grade_sum += grade
             if rec.shape[0]:
                 rec[k, KAPC], rec[k, RES], rec[k, GRADE] = kc_val, force, grade
@@ -137,7 +139,7 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
 
     traction, acceleration, governor_rate = 0.0, z, 0.0  # kinematic: z is the ramp slope (kinematic.py)
     if forces_on:
-        if sloped:  # the grade resistances enter Q as the resistances do
+        if sloped or relief:  # the grade resistances enter Q as the resistances do
             generalized_resistance = generalized_resistance + grade_sum
         traction, acceleration, governor_rate = speed_equation(P, V, v_set, z, mode, mass, 0.5 * mass_rate * V,
                                                                generalized_resistance)
@@ -148,6 +150,23 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
     dy[n + 3] = acceleration
     dy[n + 4] = governor_rate
     return traction, mass
+
+
+@jitable
+def ground(P, k, heading, kapB, kapT, ax, ay, relief, sloped):
+    """(F_gk, cos of the local slope, A_{k+1}) of cart k from A_k = (ax, ay): on a height grid
+    ``relief_grade`` at C_k, on a tilted plane ``grade_resistance`` (cosine 1: the plane's is packed
+    in the rolling resistance), on the level (0, 1); A_{k+1} is placed on a height grid only."""
+    if relief:
+        b = HEAD_SIZE + CART_SIZE * k
+        ex, ey = math.cos(heading), math.sin(heading)
+        bx, by = ax - P[b + C.length] * ex, ay - P[b + C.length] * ey
+        grade, normal = relief_grade(P, k, heading, kapB, kapT, bx + P[b + C.com_offset] * ex,
+                                     by + P[b + C.com_offset] * ey)
+        return grade, normal, bx - P[b + C.hitch_offset] * ex, by - P[b + C.hitch_offset] * ey
+    if sloped:
+        return grade_resistance(P, k, heading, kapB, kapT), 1.0, ax, ay
+    return 0.0, 1.0, ax, ay
 
 
 @jitable
@@ -185,11 +204,12 @@ GUARD_SLACK = 1e-9
 
 @jitable
 def clear(P, y):
-    """True when y is finite and every hitch is more than GUARD_SLACK inside its limits."""
+    """True when y is finite, every hitch is more than GUARD_SLACK inside its limits and, on a
+    height grid, every cart's centre of mass is on it."""
     for i in range(y.shape[0]):
         if not math.isfinite(y[i]):
             return False
-    return margin(P, y)[0] > GUARD_SLACK
+    return margin(P, y)[0] > GUARD_SLACK and off_relief(P, y) < 0
 
 
 @jitable
@@ -259,7 +279,7 @@ def drawbar_pulls(P, y, acceleration, cart, sc):
     constant speed the pull at A_k is the sum of the resistances behind it (test_sweep_metrics)."""
     n = int(P[H.n])
     V = y[n + 3]
-    sloped = P[H.slope] != 0.0
+    sloped, relief = P[H.slope] != 0.0, P[H.relief] != 0.0
     hx, hy = 0.0, 0.0  # H_{k+1}, world frame
     for k in range(n - 1, -1, -1):
         b = HEAD_SIZE + CART_SIZE * k
@@ -276,6 +296,10 @@ def drawbar_pulls(P, y, acceleration, cart, sc):
         if sloped:  # gravity in the plane at C_k: as if the cart accelerated by -g_p
             a_e -= P[H.gravity_x] * ex + P[H.gravity_y] * ey
             a_n -= P[H.gravity_x] * nx + P[H.gravity_y] * ny
+        elif relief:  # on a height grid the horizontal force of gravity's potential at C_k: -m g grad z
+            _, zx, zy = surface(P, int(P[H.relief]), cart[k, CX], cart[k, CY])
+            a_e += P[H.gravity] * (zx * ex + zy * ey)
+            a_n += P[H.gravity] * (zx * nx + zy * ny)
         behind_n = hx * nx + hy * ny  # H_{k+1} . n_k
         if k == 0:
             r1 = m * a_n + behind_n

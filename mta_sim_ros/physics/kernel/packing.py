@@ -8,12 +8,12 @@ import numpy as np
 
 from .. import forces
 from ..terrain import PlaneFrame
-from .base import CART, CART_SIZE, DRAFT, HEAD, HEAD_SIZE, LAWS, C, H
+from .base import CART, CART_SIZE, DRAFT, DRAFT_SIZE, HEAD, HEAD_SIZE, LAWS, C, H
 
 
 def pack(train, law: str | None = None, traction=None) -> np.ndarray:
     """The constants of ``train`` as one float64 array: HEAD, then CART per cart, then DRAFT per
-    draft (grouped by cart). ``law`` / ``traction`` override the train's traction law (the
+    draft (grouped by cart), then on a height grid its RELIEF block (relief.surface). ``law`` / ``traction`` override the train's traction law (the
     kinematic level packs law 'kinematic' and, for its inverse dynamics, 'prescribed_speed')."""
     traction = traction or train.traction
     law = law or traction.law
@@ -21,14 +21,19 @@ def pack(train, law: str | None = None, traction=None) -> np.ndarray:
         raise ValueError(f"traction law {law!r} has no kernel (one of {', '.join(LAWS)})")
     frame = PlaneFrame.of(train.terrain) if train.terrain is not None else None
     gravity = frame.gravity(train.gravity) if frame else (0.0, 0.0)
+    drafts = [d for resistance in forces.cart_resistances(train) for d in resistance.drafts]
+    relief = HEAD_SIZE + CART_SIZE * train.n + DRAFT_SIZE * len(drafts) if train.relief is not None else 0
     values = HEAD.values(SimpleNamespace(train=train, law=law, traction=traction, slope=frame is not None,
-                                         gravity=gravity))
+                                         gravity=gravity, relief=relief))
     drafts = []
     for k, (cart, resistance) in enumerate(zip(train.carts, forces.cart_resistances(train))):
         values += CART.values(SimpleNamespace(cart=cart, resistance=resistance, draft_first=len(drafts)))
         drafts += resistance.drafts
     for d in drafts:
         values += DRAFT.values(d)
+    if train.relief is not None:  # the RELIEF block (relief.surface)
+        ty, tx, coefficients = train.relief.spline
+        values += [len(ty), len(tx), *ty, *tx, *coefficients]
     return np.array(values, dtype=np.float64)
 
 
