@@ -37,6 +37,7 @@ from mta_sim_ros.messages.urdf import frame_prefix, robot_model
 from mta_sim_ros.physics.outline import BOX_HEIGHT
 from mta_sim_ros.node.params import PARAMS, ConfigError
 from mta_sim_ros.node.run_session import RunSession
+from mta_sim_ros.physics import terrain
 from mta_sim_ros.physics.loader import load_scene, load_train
 from mta_sim_ros.run.simulation import Simulation
 from mta_sim_ros.validate import InputError
@@ -508,3 +509,84 @@ def test_on_a_slope_the_session_tilts_odom_and_stamps_the_poses_in_it(tmp_path):
     a1 = rosbags_decode("geometry_msgs/msg/PoseArray", tick["hitch_poses"]).poses[0].position
     assert ground.type == 1 and ground.pose.position.z + ground.scale.z / 2 == 0.0
     assert (ground.pose.position.x, ground.pose.position.y) == pytest.approx((a1.x, a1.y), abs=1e-9)
+
+
+# -- on a height grid: 3D poses ----------------------------------------------------------------------
+GRADE = (0.1, 0.05)  # the plane z = 0.1 x + 0.05 y, sampled on the grid
+
+
+def plane_grid():
+    xs, ys = np.arange(-60.0, 200.0, 4.0), np.arange(-60.0, 60.0, 4.0)
+    return terrain.grid_from(GRADE[0] * xs[None, :] + GRADE[1] * ys[:, None], (-60.0, -60.0), 4.0)
+
+
+def plane_rotation(th: float):
+    """The rotation of a cart of heading th on the plane: roll = asin(across / w), pitch = -atan(along)."""
+    from scipy.spatial.transform import Rotation
+
+    gx, gy = GRADE
+    along, across = gx * math.cos(th) + gy * math.sin(th), gy * math.cos(th) - gx * math.sin(th)
+    roll, pitch = math.asin(across / math.sqrt(1 + gx * gx + gy * gy)), -math.atan(along)
+    return Rotation.from_euler("ZYX", [th, pitch, roll])
+
+
+def rotation_of(q):
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat([q.x, q.y, q.z, q.w])
+
+
+def test_on_a_height_grid_odom_and_tf_are_the_surface_poses_of_the_axles(turning):
+    """odom and /tf odom -> base_link: B_1 at the surface's height, the tractor's rotation on it;
+    the hitch joints turn each cart into its own rotation on the surface; odom is world-aligned."""
+    scene, samples = turning
+    train = dataclasses.replace(scene.train, relief=plane_grid(), terrain=None)
+    robot = robot_model(train)
+    for cart_frames in (True, False):
+        enc = FrameEncoder(robot, "map", cart_frames, train.terrain, train.relief)
+        [static] = [t for t in decoded(enc.latched(0.0))["/tf_static"].transforms if t.child_frame_id == "odom"]
+        assert planar(static) == (0.0, 0.0, 0.0) and static.header.frame_id == "map"
+        for out in samples:
+            msgs = decoded(enc.encode(out))
+            bx, by = out.axle[0]
+            pose = msgs["odom"].pose.pose
+            assert (pose.position.x, pose.position.y) == (bx, by)
+            assert abs(pose.position.z - (GRADE[0] * bx + GRADE[1] * by)) < TOL
+            want = plane_rotation(float(out.heading[0]))
+            assert (rotation_of(pose.orientation) * want.inv()).magnitude() < TOL
+            base, *joints = msgs["/tf"].transforms
+            assert (base.transform.translation.z, base.transform.rotation) == (pose.position.z, pose.orientation)
+            assert len(joints) == (len(train.carts) if cart_frames else 0)
+            for k, tf in enumerate(joints[1:], start=1):  # cart k-1 -> cart k's hitch: R_{k-1}^T R_k
+                turned = plane_rotation(float(out.heading[k - 1])) * rotation_of(tf.transform.rotation)
+                assert (turned * plane_rotation(float(out.heading[k])).inv()).magnitude() < TOL
+                assert tf.transform.translation.x == robot.hitch_joints[k - 1].x and tf.transform.translation.z == 0.0
+
+
+def test_level_and_plane_frame_templates_have_no_height_grid_slots(turning):
+    """The level's and a plane's /tf and odom templates: z, w per transform and six odometry
+    numbers, as before height grids; a grid adds base_link's height and the quaternions' x, y."""
+    scene, samples = turning
+    robot, n = robot_model(scene.train), len(scene.train.carts)
+    for plane, relief in ((None, None), (terrain.Plane(0.1, 0.05), None), (None, plane_grid())):
+        enc = FrameEncoder(robot, "map", True, plane, relief)
+        groups = {name: g.count for name, g in enc.tf.groups.items()}
+        grid = relief is not None
+        assert groups == {"xy": 2, "q": (4 if grid else 2) * (n + 1), "sec": n + 1, "nanosec": n + 1,
+                          **({"z": 1} if grid else {})}
+        assert enc.odom.groups["odom"].count == (9 if grid else 6)
+        if not grid:  # every transform a turn in the plane
+            assert all(planar(tf) for tf in decoded(enc.encode(samples[-1]))["/tf"].transforms)
+
+
+def test_on_the_hilly_field_the_session_publishes_3d_poses_in_frame_id(tmp_path):
+    """The node's session on a height grid: hitch_poses in frame_id, odom at the surface's height."""
+    s, published = session(tmp_path, scene_file=str(REPO / "config/scenes/hilly_field.yaml"))
+    for _ in range(5):
+        s.tick()
+    relief = s.scene.train.relief
+    odom = decoded({"odom": published[-1]["odom"]})["odom"].pose.pose.position
+    assert abs(odom.z - relief.at(odom.x, odom.y).z) < TOL and odom.z != 0.0
+    poses = rosbags_decode("geometry_msgs/msg/PoseArray", published[-1]["hitch_poses"])
+    assert poses.header.frame_id == "map"
+    assert all(abs(p.position.z - relief.at(p.position.x, p.position.y).z) < TOL for p in poses.poses)

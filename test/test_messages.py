@@ -30,6 +30,7 @@ from mta_sim_ros.bag import cdr, stamp
 from mta_sim_ros.messages import markers as drawing
 from mta_sim_ros.messages import topics
 from mta_sim_ros.physics.loader import load_scene, load_train
+from mta_sim_ros.physics import terrain
 from mta_sim_ros.physics.terrain import Plane
 from mta_sim_ros.run.simulation import Simulation
 
@@ -414,3 +415,84 @@ print(len(data))
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "9"
+
+
+# -- on a height grid -----------------------------------------------------------------------------
+GRADE = (0.1, 0.05)  # the plane z = 0.1 x + 0.05 y, sampled on the grids
+
+
+def plane_grid(nx: int = 65, ny: int = 30, spacing: float = 4.0):
+    xs, ys = -60.0 + spacing * np.arange(nx), -60.0 + spacing * np.arange(ny)
+    return terrain.grid_from(GRADE[0] * xs[None, :] + GRADE[1] * ys[:, None], (-60.0, -60.0), spacing)
+
+
+def plane_height(x: float, y: float) -> float:
+    return GRADE[0] * x + GRADE[1] * y
+
+
+def plane_quaternion(th: float) -> np.ndarray:
+    """(x, y, z, w) of a cart of heading th on the plane: roll = asin(across / w), pitch = -atan(along)."""
+    from scipy.spatial.transform import Rotation
+
+    gx, gy = GRADE
+    along, across = gx * math.cos(th) + gy * math.sin(th), gy * math.cos(th) - gx * math.sin(th)
+    roll, pitch = math.asin(across / math.sqrt(1 + gx * gx + gy * gy)), -math.atan(along)
+    return Rotation.from_euler("ZYX", [th, pitch, roll]).as_quat()
+
+
+def test_on_a_height_grid_hitch_poses_are_3d_the_dicts_bytes_and_the_plane_s_closed_form(lane_change, offset_hitch):
+    """Each pose: A_k at the surface's height, the cart's rotation on the surface (its heading,
+    roll and pitch of the plane's closed form); the template's bytes are the plain dicts'."""
+    grid = plane_grid()
+    for sim, samples in (lane_change, offset_hitch):
+        names = [c.name for c in sim.scene.train.carts]
+        enc = messages.OutputEncoder(names, "map", grid)
+        assert enc.poses.groups["pose"].count == 7 * len(names)
+        for out in samples:
+            data = enc.encode(out)["hitch_poses"]
+            assert data == cdr.encode(topics.TOPICS["hitch_poses"], topics.output_messages(out, names, "map", grid)
+                                      ["hitch_poses"])
+            poses = rosbags_decode(topics.TOPICS["hitch_poses"], data).poses
+            for (ax, ay), th, pose in zip(out.front.tolist(), out.heading.tolist(), poses):
+                p, q = pose.position, pose.orientation
+                assert (p.x, p.y) == (ax, ay) and abs(p.z - plane_height(ax, ay)) < 1e-9
+                assert abs(abs(np.dot([q.x, q.y, q.z, q.w], plane_quaternion(th))) - 1.0) < 1e-12
+
+
+def test_a_level_train_s_hitch_poses_template_has_no_height_grid_slots(lane_change):
+    """Level: x, y and the yaw's z, w per pose, and z = 0, x = y = 0 written in the template."""
+    sim, samples = lane_change
+    names = [c.name for c in sim.scene.train.carts]
+    enc = messages.OutputEncoder(names, "map")
+    assert enc.poses.groups["pose"].count == 4 * len(names)
+    assert enc.encode(samples[-1])["hitch_poses"] == cdr.encode(
+        topics.TOPICS["hitch_poses"], topics.output_messages(samples[-1], names, "map")["hitch_poses"])
+
+
+def test_on_a_height_grid_the_markers_lie_on_the_surface_over_its_mesh(lane_change):
+    """The drawing on a grid: every point at the surface's height, the ground one TRIANGLE_LIST
+    (ns terrain, id 0) through every node (a small grid), TERRAIN_DROP below them."""
+    sim, samples = lane_change
+    grid = plane_grid()
+    train = dataclasses.replace(sim.scene.train, relief=grid, terrain=None)
+    enc = messages.TrainMarkers(train, "map")
+    for out in samples:
+        data = enc.encode(out)
+        assert data == cdr.encode(messages.MARKERS_TYPE, messages.train_markers(out, train, "map"))
+        array = deserialize_message(data, MarkerArray)
+        [ground] = [m for m in array.markers if m.ns == drawing.NS_TERRAIN]
+        assert (ground.id, ground.type, ground.header.frame_id) == (0, drawing.TRIANGLE_LIST, "map")
+        assert len(ground.points) == 6 * 64 * 29
+        assert max(abs(p.z + drawing.TERRAIN_DROP - plane_height(p.x, p.y)) for p in ground.points) < 1e-9
+        drawn_points = [p for m in array.markers if m.ns != drawing.NS_TERRAIN for p in m.points]
+        drawn_points += [m.pose.position for m in array.markers if m.ns == drawing.NS_LABEL]
+        assert max(abs(p.z - plane_height(p.x, p.y)) for p in drawn_points) < 1e-9
+
+
+def test_a_large_grid_s_mesh_is_decimated_to_its_corners():
+    grid = plane_grid(nx=401, ny=257, spacing=1.0)
+    points = drawing.terrain_mesh(grid)
+    assert len(points) % 3 == 0 and len(points) // 3 <= drawing.MAX_TERRAIN_TRIANGLES
+    assert len(points) // 3 > drawing.MAX_TERRAIN_TRIANGLES / 4  # no coarser than needed
+    xs, ys = {p["x"] for p in points}, {p["y"] for p in points}
+    assert (min(xs), max(xs), min(ys), max(ys)) == (-60.0, 340.0, -60.0, 196.0)

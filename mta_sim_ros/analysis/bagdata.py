@@ -13,6 +13,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
+from ..physics.terrain import heading_of
 from ..bag import read_messages, read_metadata, summary
 from ..messages.topics import RUN_METADATA_TOPIC, RUN_METADATA_TYPE
 from ..node.runlog import RECORD, recorded_scene, recorded_scene_name, recorded_train
@@ -94,8 +95,9 @@ def wrap(angle):
 
 
 def quaternion_yaw(q) -> float:
-    """Yaw of a geometry_msgs/Quaternion (rotation about z): 2 atan2(z, w) wrapped to (-pi, pi]."""
-    return float(wrap(2.0 * math.atan2(q.z, q.w)))
+    """The heading of a geometry_msgs/Quaternion (terrain.heading_of: its yaw, a 3D pose's on a
+    height grid too), wrapped to (-pi, pi]."""
+    return float(wrap(heading_of(q.x, q.y, q.z, q.w)))
 
 
 def last_component(topic: str) -> str:

@@ -186,8 +186,9 @@ def plot_stance(datas, path) -> Path:
     for i, d in enumerate(datas):
         stance = Stance(d.train)
         t = d.pose_heading.t - d.t0
-        roll, pitch = stance.angles(d.pose_heading.values)
-        margins = stance.margins(d.pose_heading.values)
+        a1 = (d.poses.values[:, 0, 0], d.poses.values[:, 0, 1])  # A_1 (a height grid's stance)
+        roll, pitch = stance.angles(d.pose_heading.values, a1)
+        margins = stance.margins(d.pose_heading.values, a1)
         ls = STYLES[i % len(STYLES)] if len(datas) > 1 else "-"
         for k, name in enumerate(d.cart_names):
             top.plot(t, np.degrees(roll[:, k]), color=_color(k), ls=ls, lw=1.3, label=_label(datas, d, f"{name} roll"))
@@ -215,4 +216,4 @@ def plot_all(datas: Sequence[BagData], folder: Path) -> list[Path]:
     return [plot_trajectory(datas, folder / "trajectory.png"), plot_speeds(datas, folder / "speeds.png"),
             plot_power(datas, folder / "power.png"), plot_hitch_angles(datas, folder / "hitch_angles.png"),
             plot_steering(datas, folder / "steering.png")] + (
-        [plot_stance(datas, folder / "stance.png")] if any(d.train.terrain is not None for d in datas) else [])
+        [plot_stance(datas, folder / "stance.png")] if any(d.train.terrain is not None or d.train.relief is not None for d in datas) else [])

@@ -238,7 +238,7 @@ def resimulate(bag: str, method: str | None = None, step: float | None = None, p
         if expected_at != log_time:
             out = sim.outputs()
             out.t = offset + sim.t  # the node publishes offset + run time
-            expected, expected_at = output_messages(out, cart_names), log_time
+            expected, expected_at = output_messages(out, cart_names, relief=scene.train.relief), log_time
         compare_message(dev, name, msg, expected[name], t)
     return result
 

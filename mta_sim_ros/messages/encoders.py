@@ -17,6 +17,7 @@ import numpy as np
 from ..bag.cdr import Slot
 from ..bag.template import TIME_SLOTS, CdrTemplate
 from ..bag.writer import stamp_parts
+from .frames import surface_poses
 from .topics import TOPICS
 
 FLOAT64_TYPE = "std_msgs/msg/Float64"
@@ -29,14 +30,25 @@ def float64_template() -> CdrTemplate:
 
 class OutputEncoder:
     """The published topics of one Outputs sample as CDR bytes: hitch_poses, cart_velocities,
-    traction_power, applied_steering and /clock, with the values of ``topics.output_messages``."""
+    traction_power, applied_steering and /clock, with the values of ``topics.output_messages``
+    (on a height grid hitch_poses are 3D: ``__init__``)."""
 
-    def __init__(self, cart_names: Sequence[str], frame_id: str = "map"):
-        self.n, self.frame_id = len(cart_names), frame_id
+    def __init__(self, cart_names: Sequence[str], frame_id: str = "map", relief=None):
+        """``relief``: the train's height grid (terrain.HeightGrid), or None: then every pose lies
+        in z = 0 and turns about z; on a grid each pose's z is the surface's height at A_k and its
+        orientation the cart's on the surface at its axle B_k (frames.surface_rotation: the
+        template gets slots for z and the quaternion's x, y only then)."""
+        self.n, self.frame_id, self.relief = len(cart_names), frame_id, relief
         n = self.n
-        poses = [{"position": {"x": Slot("pose", 4 * k), "y": Slot("pose", 4 * k + 1), "z": 0.0},
-                  "orientation": {"x": 0.0, "y": 0.0, "z": Slot("pose", 4 * k + 2), "w": Slot("pose", 4 * k + 3)}}
-                 for k in range(n)]
+        if relief is None:
+            poses = [{"position": {"x": Slot("pose", 4 * k), "y": Slot("pose", 4 * k + 1), "z": 0.0},
+                      "orientation": {"x": 0.0, "y": 0.0, "z": Slot("pose", 4 * k + 2),
+                                      "w": Slot("pose", 4 * k + 3)}}
+                     for k in range(n)]
+        else:  # x, y, z, then the quaternion's x, y, z, w
+            poses = [{"position": {axis: Slot("pose", 7 * k + i) for i, axis in enumerate("xyz")},
+                      "orientation": {axis: Slot("pose", 7 * k + 3 + i) for i, axis in enumerate("xyzw")}}
+                     for k in range(n)]
         self.poses = CdrTemplate(TOPICS["hitch_poses"],
                                  {"header": {"stamp": TIME_SLOTS, "frame_id": frame_id}, "poses": poses})
         joint = [Slot("joint", i) for i in range(3 * n)]
@@ -45,7 +57,7 @@ class OutputEncoder:
             "position": joint[:n], "velocity": joint[n:2 * n], "effort": joint[2 * n:]})
         self.scalar = float64_template()
         self.clock = CdrTemplate(TOPICS["/clock"], {"clock": TIME_SLOTS})
-        self.pose_values = np.zeros((n, 4))
+        self.pose_values = np.zeros((n, 4 if relief is None else 7))
 
     def encode(self, out) -> dict[str, bytes]:
         """topic -> CDR bytes, the topics and values of ``topics.output_messages(out, ...)``.
@@ -58,8 +70,11 @@ class OutputEncoder:
         sec, nanosec = stamp_parts(out.t)
         v = self.pose_values
         v[:, :2] = out.front
-        for k, th in enumerate(out.heading.tolist()):  # bag.writer.yaw_quaternion's math, bit for bit
-            v[k, 2], v[k, 3] = math.sin(th / 2.0), math.cos(th / 2.0)
+        if self.relief is None:
+            for k, th in enumerate(out.heading.tolist()):  # bag.writer.yaw_quaternion's math, bit for bit
+                v[k, 2], v[k, 3] = math.sin(th / 2.0), math.cos(th / 2.0)
+        else:
+            v[:] = surface_poses(self.relief, out)
         return {
             "hitch_poses": self.poses.fill(pose=v.ravel(), sec=sec, nanosec=nanosec),
             "cart_velocities": self.joints.fill(joint=np.concatenate((out.heading, out.com_speed, out.resistance)),

@@ -9,24 +9,32 @@ cart's colour. Everything lies in z = 0 with identity poses; stable ids make eve
 replace the previous one. A train on a scene's tilted plane (``train.terrain``) also draws the
 ground: a CUBE (ns ``terrain``, id 0) TERRAIN_SIZE m square and TERRAIN_THICKNESS thick, its top
 at z = 0 and its centre under A_1, in the frame of the plane (the node's odom is the plane: the
-train is drawn on it and the ground tilts with it in RViz and Foxglove).
+train is drawn on it and the ground tilts with it in RViz and Foxglove). On a height grid
+(``train.relief``) every point drawn lies on the surface (its height at the point, x, y being
+horizontal there) and the ground is a TRIANGLE_LIST (ns ``terrain``, id 0) through the grid's
+nodes, every few nodes where the grid is large (at most MAX_TERRAIN_TRIANGLES triangles),
+TERRAIN_DROP below them so the lines on the surface show; it is the same in every message.
 
 :func:`train_markers` gives the message as plain dicts; :class:`TrainMarkers` its CDR bytes from
 a template (the node's marker tick), byte for byte ``bag.cdr.encode`` of the dicts.
 """
 from __future__ import annotations
 
+import functools
 import math
+
+import numpy as np
 
 from ..bag.cdr import Slot
 from ..bag.template import TIME_SLOTS, CdrTemplate
 from ..bag.writer import stamp, stamp_parts
 from ..physics.outline import cart_widths
+from .frames import surface_at
 
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 
 # visualization_msgs/Marker constants (Marker.msg).
-CUBE, LINE_STRIP, LINE_LIST, SPHERE_LIST, TEXT_VIEW_FACING = 1, 4, 5, 7, 9
+CUBE, LINE_STRIP, LINE_LIST, SPHERE_LIST, TEXT_VIEW_FACING, TRIANGLE_LIST = 1, 4, 5, 7, 9, 11
 ADD = 0
 
 # Marker namespaces, one per kind of marker; within each the id is the cart index (the single
@@ -42,6 +50,8 @@ HITCH_DIAMETER = 0.5  # m, hitch point spheres
 TEXT_HEIGHT = 1.0  # m, cart name labels
 TERRAIN_SIZE = 200.0  # m, the side of the ground drawn under the train on a tilted plane
 TERRAIN_THICKNESS = 0.0625  # m
+MAX_TERRAIN_TRIANGLES = 5000  # a height grid's mesh: its nodes decimated to at most this many triangles
+TERRAIN_DROP = 0.125  # m, the mesh below the grid's nodes (a mesh's flat triangles cut the curved surface)
 TERRAIN_COLOR = {"r": 0.5625, "g": 0.4375, "b": 0.25, "a": 0.5}  # soil, half transparent (exact in float32)
 
 # Cart colours (RGB), in train order, repeated for long trains. Multiples of 1/16, exact in the
@@ -59,9 +69,36 @@ _PALETTE = (
 _POINTS_PER_CART = 8
 
 
+def relief_of(train):
+    """The train's height grid, or None (a train without the attribute has none)."""
+    return getattr(train, "relief", None)
+
+
+@functools.lru_cache(maxsize=1)
+def terrain_mesh(relief) -> tuple[dict, ...]:
+    """The triangles (3 points each, counter-clockwise seen from above) through the height grid's
+    nodes, every ``step``-th node along each axis (and the last), ``step`` the smallest that keeps
+    them at most MAX_TERRAIN_TRIANGLES; TERRAIN_DROP below the nodes."""
+    heights = relief.heights
+    ny, nx = heights.shape
+    step = 1
+    while 2 * math.ceil((nx - 1) / step) * math.ceil((ny - 1) / step) > MAX_TERRAIN_TRIANGLES:
+        step += 1
+    cols = sorted(set(range(0, nx, step)) | {nx - 1})
+    rows = sorted(set(range(0, ny, step)) | {ny - 1})
+    node = {(i, j): {"x": float(relief.xs[j]), "y": float(relief.ys[i]), "z": float(heights[i, j]) - TERRAIN_DROP}
+            for i in rows for j in cols}
+    points = []
+    for i0, i1 in zip(rows, rows[1:]):
+        for j0, j1 in zip(cols, cols[1:]):
+            points += (node[i0, j0], node[i0, j1], node[i1, j1], node[i0, j0], node[i1, j1], node[i1, j0])
+    return tuple(points)
+
+
 def coordinates(out, train, widths: list[float]) -> list[float]:
     """x, y of every point drawn: per cart the outline's 5 corners, the axle's 2 ends and the
-    label's position, then the hitch points A_k, then on a tilted plane the ground's centre (A_1).
+    label's position, then the hitch points A_k, then on a tilted plane the ground's centre (A_1);
+    on a height grid x, y, z of each, z the surface's height there.
 
     Raises:
         ValueError: the outputs are of another train (another number of carts).
@@ -92,6 +129,11 @@ def coordinates(out, train, widths: list[float]) -> list[float]:
         xy += (x, y)
     if train.terrain is not None:
         xy += front[0]
+    relief = relief_of(train)
+    if relief is not None:
+        pts = np.asarray(xy).reshape(-1, 2)
+        heights = [surface_at(relief, x, y).z for x, y in pts.tolist()]
+        xy = np.column_stack((pts, heights)).ravel().tolist()
     return xy
 
 
@@ -103,12 +145,16 @@ def cart_color(k: int) -> dict:
 
 def marker_array(train, frame_id: str, time: dict, xy: list) -> dict:
     """The MarkerArray of the module docstring as plain dicts, every stamp ``time``
-    (builtin_interfaces/Time) and the points' x, y taken in order from ``xy`` (numbers, or
-    :class:`~mta_sim_ros.bag.cdr.Slot` for a template)."""
-    pairs = iter(zip(xy[0::2], xy[1::2]))
+    (builtin_interfaces/Time) and the points' x, y (on a height grid x, y, z) taken in order from
+    ``xy`` (numbers, or :class:`~mta_sim_ros.bag.cdr.Slot` for a template)."""
+    relief = relief_of(train)
+    if relief is None:
+        pairs = iter(zip(xy[0::2], xy[1::2], [0.0] * (len(xy) // 2)))
+    else:
+        pairs = iter(zip(xy[0::3], xy[1::3], xy[2::3]))
 
     def points(count: int) -> list[dict]:
-        return [{"x": x, "y": y, "z": 0.0} for x, y in (next(pairs) for _ in range(count))]
+        return [{"x": x, "y": y, "z": z} for x, y, z in (next(pairs) for _ in range(count))]
 
     def marker(ns: str, marker_id: int, marker_type: int, scale: dict, color: dict, **fields) -> dict:
         """A Marker to ADD (replacing the one with the same ns and id), identity pose unless given."""
@@ -131,6 +177,9 @@ def marker_array(train, frame_id: str, time: dict, xy: list) -> dict:
         centre = {**points(1)[0], "z": -TERRAIN_THICKNESS / 2.0}
         markers.append(marker(NS_TERRAIN, 0, CUBE, {"x": TERRAIN_SIZE, "y": TERRAIN_SIZE, "z": TERRAIN_THICKNESS},
                               TERRAIN_COLOR, pose={"position": centre, "orientation": {"w": 1.0}}))
+    if relief is not None:
+        markers.append(marker(NS_TERRAIN, 0, TRIANGLE_LIST, {"x": 1.0, "y": 1.0, "z": 1.0}, TERRAIN_COLOR,
+                              pose={"orientation": {"w": 1.0}}, points=list(terrain_mesh(relief))))
     return {"markers": markers}
 
 
@@ -147,7 +196,7 @@ class TrainMarkers:
         self.train, self.frame_id = train, frame_id
         self.widths = cart_widths(train)
         count = (_POINTS_PER_CART + 1) * len(train.carts) + (train.terrain is not None)
-        slots = [Slot("xy", i) for i in range(2 * count)]
+        slots = [Slot("xy", i) for i in range((2 if relief_of(train) is None else 3) * count)]
         self.template = CdrTemplate(MARKERS_TYPE, marker_array(train, frame_id, TIME_SLOTS, slots))
 
     def encode(self, out) -> bytes:

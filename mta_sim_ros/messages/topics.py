@@ -34,6 +34,7 @@ in /, ``unit1/`` in /unit1):
 from __future__ import annotations
 
 from ..bag import clock, float64, joint_state, pose_array, qos_profiles_yaml
+from .frames import surface_poses
 
 TOPICS = {
     "hitch_poses": "geometry_msgs/msg/PoseArray",
@@ -104,11 +105,18 @@ def qualified(topic: str, namespace: str = "/") -> str:
     return namespace.rstrip("/") + "/" + topic
 
 
-def output_messages(out, cart_names, frame_id: str = "map") -> dict[str, dict]:
-    """The published messages (plain dicts, topic -> message) for one Outputs sample."""
+def output_messages(out, cart_names, frame_id: str = "map", relief=None) -> dict[str, dict]:
+    """The published messages (plain dicts, topic -> message) for one Outputs sample; on a height
+    grid (``relief``) hitch_poses are 3D (frames.surface_poses)."""
     t = out.t
+    if relief is None:
+        poses = pose_array(t, frame_id, [(p[0], p[1], th) for p, th in zip(out.front, out.heading)])
+    else:
+        poses = {"header": pose_array(t, frame_id, [])["header"],
+                 "poses": [{"position": dict(zip("xyz", p[:3])), "orientation": dict(zip("xyzw", p[3:]))}
+                           for p in surface_poses(relief, out)]}
     return {
-        "hitch_poses": pose_array(t, frame_id, [(p[0], p[1], th) for p, th in zip(out.front, out.heading)]),
+        "hitch_poses": poses,
         "cart_velocities": joint_state(t, cart_names, out.heading, out.com_speed, efforts=out.resistance),
         "traction_power": float64(out.power),
         "applied_steering": float64(out.steering),

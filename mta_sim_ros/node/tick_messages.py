@@ -33,13 +33,16 @@ class Encoders(Protocol):
     """The seam between the session and a CDR encoding. Frame-dependent encoders are made at start
     and again when frame_id changes, never per tick."""
 
-    def outputs(self, cart_names: Sequence[str], frame_id: str) -> OutputsEncoder: ...
+    def outputs(self, cart_names: Sequence[str], frame_id: str, relief=None) -> OutputsEncoder:
+        """``relief``: the train's height grid (hitch_poses are 3D on it), or None."""
 
-    def markers(self, train, frame_id: str) -> MarkersEncoder: ...
+    def markers(self, train, frame_id: str) -> MarkersEncoder:
+        """The drawing of ``train`` (on its plane or height grid, if any)."""
 
-    def frames(self, robot, frame_id: str, cart_frames: bool, plane=None) -> FramesEncoder:
+    def frames(self, robot, frame_id: str, cart_frames: bool, plane=None, relief=None) -> FramesEncoder:
         """The frames of ``robot`` (urdf.Robot); ``cart_frames``: its joints' frames too; ``plane``:
-        the train's terrain (frames.py: frame_id -> odom carries its tilt)."""
+        the train's terrain (frames.py: frame_id -> odom carries its tilt); ``relief``: its height
+        grid (frames.py: the poses are 3D)."""
 
     def diagnostics(self, t: float, name: str, level: int, message: str,
                     values: Mapping[str, object]) -> bytes:
@@ -61,12 +64,15 @@ class TickMessages:
 
     def make(self, frame_id: str, cart_frames: bool) -> None:
         """The tick's encoders for ``frame_id`` (at start and when it changes); on a terrain the
-        poses and markers are in the plane's frame, odom (frames.poses_frame)."""
-        plane = self.train.terrain
+        poses and markers are in the plane's frame, odom (frames.poses_frame); on a height grid
+        (``train.relief``) in frame_id, 3D. The relief is passed only when there is one, so an
+        Encoders written before height grids still serves the level and the plane."""
+        plane, relief = self.train.terrain, getattr(self.train, "relief", None)
+        grid = {"relief": relief} if relief is not None else {}
         poses = poses_frame(self.robot, frame_id, plane)
-        self.outputs = self.enc.outputs(self.cart_names, poses)
+        self.outputs = self.enc.outputs(self.cart_names, poses, **grid)
         self.markers = self.enc.markers(self.train, poses)
-        self.frames = self.enc.frames(self.robot, frame_id, cart_frames, plane)
+        self.frames = self.enc.frames(self.robot, frame_id, cart_frames, plane, **grid)
 
     def of_tick(self, out) -> dict[str, bytes]:
         """topic -> CDR bytes of one tick's outputs and frames (/tf, joint_states, odom)."""

@@ -24,6 +24,7 @@ from ..config import resolve_config_path
 from ..messages import CommandEncoder, FrameEncoder, OutputEncoder, poses_frame
 from ..messages.topics import FRAME_TOPICS, LATCHED_QOS_YAML, LATCHED_TOPICS, TOPICS, qualified
 from ..messages.urdf import robot_model
+from ..node.runlog import terrain_record
 from ..physics.loader import load_scene
 from ..physics.spec import INTEGRATOR_METHODS
 from ..physics.terrain import Stance
@@ -102,6 +103,7 @@ def run_metadata(scene, options: dict) -> dict[str, str]:
         "scene_yaml": Path(scene.source).read_text(),
         "train_file": str(train_path),
         "train_yaml": train_path.read_text(),
+        **terrain_record(scene),
         **{k: str(v) for k, v in options.items()},
     }
 
@@ -224,10 +226,10 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
             for topic, type_name in FRAME_TOPICS.items():
                 bag.add_topic(qualified(topic), type_name, LATCHED_QOS_YAML if topic in LATCHED_TOPICS
                               else DEFAULT_QOS_YAML)
-            plane = scene.train.terrain
-            outputs = OutputEncoder(cart_names, poses_frame(robot, args.frame_id, plane))  # the node's encoders
+            plane, relief = scene.train.terrain, scene.train.relief
+            outputs = OutputEncoder(cart_names, poses_frame(robot, args.frame_id, plane), relief)  # the node's encoders
             commands = CommandEncoder()
-            frames = FrameEncoder(robot, args.frame_id, plane=plane)
+            frames = FrameEncoder(robot, args.frame_id, plane=plane, relief=relief)
             for topic, data in frames.latched(0.0).items():
                 bag.write_raw(qualified(topic), data, 0)
 

@@ -29,6 +29,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, ColorRGBA, Float64
 from visualization_msgs.msg import Marker, MarkerArray
 
+from ...physics.terrain import heading_of
 from ...field.grid import outlines
 from ...field.plan_io import path_message
 from ...node.ros_msgs import LATCHED_QOS, QOS
@@ -91,7 +92,7 @@ class FieldFollowNode(Node):
             return
         self.waiting = {s: p for s, p in self.waiting.items() if s > stamp}
         self.answered = stamp
-        th = [2.0 * math.atan2(p.orientation.z, p.orientation.w) for p in poses]
+        th = [heading_of(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w) for p in poses]
         points = [(p.position.x, p.position.y) for p in poses]
         psi = parts["joint_states"].position[-1]
         speed = parts["odom"].twist.twist.linear.x / math.cos(psi)

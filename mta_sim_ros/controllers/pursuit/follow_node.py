@@ -4,12 +4,12 @@ pose with one ``steering_angle``. A simulator that halts ends the run (halt_watc
 measured is reported, with the reason, and the command exits 1."""
 from __future__ import annotations
 
-import math
 
 from geometry_msgs.msg import PoseArray
 from rclpy.node import Node
 from std_msgs.msg import Float64
 
+from ...physics.terrain import heading_of
 from ...node.ros_msgs import QOS
 from ..halt_watch import HaltWatch
 from .follower import Follower
@@ -32,7 +32,7 @@ class FollowNode(Node):
     def _on_poses(self, msg: PoseArray) -> None:
         if self.follower.done or len(msg.poses) != self.follower.train.n:
             return
-        th = [2.0 * math.atan2(p.orientation.z, p.orientation.w) for p in msg.poses]
+        th = [heading_of(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w) for p in msg.poses]
         points = [(p.position.x, p.position.y) for p in msg.poses]
         self.pub.publish(Float64(data=self.follower.steering(points, th)))
 

@@ -8,13 +8,13 @@ the reason, and the command exits 1.
 """
 from __future__ import annotations
 
-import math
 
 from ackermann_msgs.msg import AckermannDriveStamped
 from geometry_msgs.msg import PoseArray
 from rclpy.node import Node
 from std_msgs.msg import Float64
 
+from ...physics.terrain import heading_of
 from ...node.ros_msgs import QOS
 from ..halt_watch import HaltWatch
 from .controller import Reverser
@@ -41,7 +41,7 @@ class ReverseNode(Node):
     def _on_poses(self, msg) -> None:
         if self.reverser.done or len(msg.poses) != self.reverser.train.n:
             return
-        th = [2.0 * math.atan2(p.orientation.z, p.orientation.w) for p in msg.poses]
+        th = [heading_of(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w) for p in msg.poses]
         points = [(p.position.x, p.position.y) for p in msg.poses]
         out = AckermannDriveStamped()
         out.drive.steering_angle, out.drive.speed = self.reverser.answer(points, th)
