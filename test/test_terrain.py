@@ -180,6 +180,8 @@ def test_grid_files_npy_and_csv(tmp_path):
     np.savetxt(tmp_path / "h.csv", heights, delimiter=",")
     np.testing.assert_array_equal(read_heights(tmp_path / "h.npy"), heights)
     np.testing.assert_array_equal(read_heights(tmp_path / "h.csv"), heights)
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "h.csv").read_bytes())  # a spreadsheet's export
+    np.testing.assert_array_equal(read_heights(tmp_path / "bom.csv"), heights)
     (tmp_path / "ragged.csv").write_text("1,2,3,4\n1,2,3\n1,2,3,4\n1,2,3,4\n")
     refused(lambda: read_heights(tmp_path / "ragged.csv"), "file:", "a grid of numbers")
     (tmp_path / "words.csv").write_text("a,b\n")
@@ -192,6 +194,6 @@ def test_grid_files_npy_and_csv(tmp_path):
     (tmp_path / "evil.npy").write_bytes(pickle.dumps([1, 2]))
     refused(lambda: read_heights(tmp_path / "evil.npy"), "a grid of numbers")
     refused(lambda: read_heights(tmp_path / "nowhere.csv"), "nowhere.csv", "No such file")
-    refused(lambda: read_heights(tmp_path), "a file (.npy or .csv)")
+    refused(lambda: read_heights(tmp_path), "a file (.npy, .csv")
     (tmp_path / "h.tif").write_bytes(b"II*\0")
     refused(lambda: read_heights(tmp_path / "h.tif"), "a .npy or .csv grid")

@@ -362,7 +362,7 @@ def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = 
     except OSError as err:
         fail("file", show(str(path)), f"a readable grid file ({err.strerror or err})", where, source)
     if not p.is_file():
-        fail("file", show(str(path)), "a file (.npy or .csv)", where, source)
+        fail("file", show(str(path)), "a file (.npy, .csv or a GeoTIFF .tif)", where, source)
     if size > MAX_FILE_BYTES:
         fail("file", f"{show(str(path))} of {size} bytes", f"at most {MAX_FILE_BYTES} bytes", where, source)
     suffix = p.suffix.lower()
@@ -370,11 +370,11 @@ def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = 
         if suffix == ".npy":
             return np.load(p, allow_pickle=False)
         if suffix == ".csv":
-            return np.loadtxt(p, delimiter=",", ndmin=2)
+            return np.loadtxt(p, delimiter=",", ndmin=2, encoding="utf-8-sig")  # a spreadsheet's BOM
     except (ValueError, OSError, EOFError) as err:
         fail("file", show(str(path)), f"a grid of numbers ({str(err).splitlines()[0] if str(err) else err!r})",
              where, source)
-    fail("file", show(str(path)), "a .npy or .csv grid of heights", where, source)
+    fail("file", show(str(path)), "a .npy or .csv grid of heights, or a GeoTIFF (.tif)", where, source)
 
 
 def heights_from_text(text: str, where: str = "terrain", source: str = "") -> np.ndarray:
