@@ -329,3 +329,32 @@ def test_a_file_that_is_not_a_geotiff_is_one_line(tmp_path):
     with pytest.raises(InputError) as err:
         loader.load_scene(path)
     assert "a GeoTIFF GDAL reads" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_analyze_charts_power_against_the_grade_the_run_met(tmp_path):
+    """From the bags alone: up the 12 % plane the grade met is 12 % at every pose; on the hilly
+    field it is the grid's slope along the tractor at its centre of mass; power_grade.png is drawn."""
+    from mta_sim_ros import cli
+    from mta_sim_ros.analysis.bagdata import load_bag
+    from mta_sim_ros.analysis.plots import grade_met
+
+    for name, duration in (("hill_climb", "duration: 30"), ("hilly_field", "duration: 60")):
+        text = (CONFIG / "scenes" / f"{name}.yaml").read_text().replace(duration, "duration: 4")
+        text = text.replace("../", str(CONFIG.resolve()) + "/")
+        (tmp_path / f"{name}.yaml").write_text(text)
+        bag = tmp_path / f"{name}.mcap"
+        assert cli.main(["run", "--scene", str(tmp_path / f"{name}.yaml"), "--bag", str(bag), "--quiet"]) == 0
+        assert cli.main(["analyze", str(bag), "--out", str(tmp_path / name)]) == 0
+        assert (tmp_path / name / "power_grade.png").stat().st_size > 0
+        d = load_bag(bag)
+        grade = grade_met(d)
+        if name == "hill_climb":
+            np.testing.assert_allclose(grade, 12.0, rtol=0, atol=1e-9)
+        else:
+            th = d.pose_heading.values[:, 0]
+            com = d.poses.values[:, 0, :] - (d.train.carts[0].length - d.train.carts[0].com_offset) * np.stack(
+                [np.cos(th), np.sin(th)], axis=1)
+            ref = RectBivariateSpline(d.train.relief.ys, d.train.relief.xs, d.train.relief.heights, s=0)
+            along = ref(com[:, 1], com[:, 0], dy=1, grid=False) * np.cos(th) + \
+                ref(com[:, 1], com[:, 0], dx=1, grid=False) * np.sin(th)
+            np.testing.assert_allclose(grade, 100.0 * along, rtol=0, atol=1e-6)

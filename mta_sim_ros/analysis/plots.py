@@ -211,9 +211,42 @@ def plot_stance(datas, path) -> Path:
     return _save(fig, path)
 
 
+def grade_met(d: BagData) -> np.ndarray:
+    """The grade under the tractor at each pose of a bag, %: 100 tan of its nose-up pitch on the
+    scene's terrain (physics.terrain.Stance; at its centre of mass on a height grid)."""
+    from ..physics.terrain import Stance
+
+    a1 = (d.poses.values[:, 0, 0], d.poses.values[:, 0, 1])
+    return 100.0 * np.tan(-Stance(d.train).angles(d.pose_heading.values, a1)[1][:, 0])
+
+
+def plot_power_grade(datas, path) -> Path:
+    """The traction power against the grade under the tractor, % (100 tan of its nose-up pitch on
+    the terrain, physics.terrain.Stance, at the power's times): on a plane or a grid, the power a
+    climb costs, as the run met it."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 4.6), dpi=FIGURE_DPI, layout="constrained")
+    ax = fig.subplots()
+    for i, d in enumerate(datas):
+        if d.power is None:
+            continue
+        grade = np.interp(d.power.t, d.pose_heading.t, grade_met(d))
+        ax.plot(grade, d.power.values / 1e3, ".", ms=2, color=_color(i), label=d.label if len(datas) > 1 else None)
+    ax.set_xlabel("grade under the tractor (%, > 0 climbing)")
+    ax.set_ylabel(r"traction power $F_{A1} V$ (kW)")
+    ax.grid(True, alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="best")
+    ax.set_title(_title(datas, "Traction power against the grade met"), fontsize=10)
+    return _save(fig, path)
+
+
 def plot_all(datas: Sequence[BagData], folder: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
+    sloped = any(d.train.terrain is not None or d.train.relief is not None for d in datas)
     return [plot_trajectory(datas, folder / "trajectory.png"), plot_speeds(datas, folder / "speeds.png"),
             plot_power(datas, folder / "power.png"), plot_hitch_angles(datas, folder / "hitch_angles.png"),
             plot_steering(datas, folder / "steering.png")] + (
-        [plot_stance(datas, folder / "stance.png")] if any(d.train.terrain is not None or d.train.relief is not None for d in datas) else [])
+        [plot_stance(datas, folder / "stance.png"), plot_power_grade(datas, folder / "power_grade.png")] if sloped
+        else [])
