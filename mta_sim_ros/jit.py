@@ -6,9 +6,16 @@ Two decorators give them their two lives:
 
 ``jitable``  a function the kernels call from each other: plain Python when called from Python,
              compiled into its caller when called from compiled code (numba's register_jitable).
+``inlined``  a ``jitable`` inlined into its caller by numba itself (its IR, before LLVM's own
+             inliner decides): for the lanes' math (``physics/kernel/vmath.py``), which a loop over
+             lanes vectorises only when no call is left in its body
 ``entry``    a function Python calls: compiled and cached on disk (numba's njit(cache=True)); its
              ``py_func`` is the same source run as plain Python, calling the plain-Python
              ``jitable`` functions. So ``entry.py_func`` is a whole Python path, not a mix.
+``lanes``    an ``entry`` whose loop runs over a batch of schemes, one per SIMD lane, compiled with
+             numba's numpy error model: a division by zero gives inf or NaN, as in C, instead of
+             raising ZeroDivisionError, whose check would put a branch in every lane and keep
+             LLVM from vectorising the loop.
 
 Without numba, or with the environment variable ``MTA_SIM_NO_JIT=1`` set when the package is
 imported, both decorators leave the function as it is (``entry`` adds ``py_func``, itself).
@@ -27,6 +34,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import re
 from importlib import resources
 
 NO_JIT_ENV = "MTA_SIM_NO_JIT"
@@ -38,6 +46,7 @@ UNIT = (
     "physics/kernel/base.py",
     "physics/kernel/laws.py",
     "physics/kernel/relief.py",
+    "physics/kernel/vmath.py",
     "physics/kernel/motion.py",
     "physics/kernel/entries.py",
     "physics/kernel/inverse.py",
@@ -83,15 +92,49 @@ try:
 except (ImportError, OSError) as _err:  # OSError: llvmlite's shared library failed to load
     ENABLED = False
     NOTE = f"numba not used ({_err})"
-    jitable = _plain
-    entry = _plain_entry
+    jitable = inlined = _plain
+    entry = lanes = _plain_entry
 else:
     ENABLED = True
     NOTE = f"numba {numba.__version__}"
     jitable = register_jitable
+
+    def inlined(f):
+        # a new register_jitable per function: it pops ``inline`` from the options it was given
+        return register_jitable(inline="always")(f)
 
     def entry(f):
         """Compile ``f`` (lazily, on first call) and cache it on disk beside its source, in a cache
         file named after the unit's digest (numba names it after the function's qualified name)."""
         f.__qualname__ = f"{f.__qualname__}_unit_{unit_digest()}"
         return numba.njit(cache=True)(f)
+
+    def lanes(f):
+        """``entry`` with the numpy error model (module docstring)."""
+        f.__qualname__ = f"{f.__qualname__}_unit_{unit_digest()}"
+        return numba.njit(cache=True, error_model="numpy")(f)
+
+
+#: a packed double-precision arithmetic instruction (SSE2, AVX, AVX-512: 2, 4 or 8 lanes at once)
+PACKED = re.compile(r"\b(v?(add|sub|mul|div|min|max|blendv|and|or)pd|vfn?m(add|sub)\d{3}pd)\b")
+#: a call to the C library's math in LLVM IR, direct or through an LLVM intrinsic: a call a value
+C_MATH_CALL = re.compile(r"call [^@\n]*@(llvm\.)?(sin|cos|tan|atan2|atan|tanh|exp|log|pow)(\.f64)?\b")
+
+
+def assembly(f, *args) -> tuple[str, str]:
+    """(assembly, LLVM IR) of the entry ``f`` compiled anew for ``args`` with its own options: numba
+    cannot show code it loaded from its cache. For the tests and benchmarks that read what the
+    compiler made of a loop (vectorised or not); needs numba."""
+    options = {k: v for k, v in f.targetoptions.items() if k not in ("cache", "nopython")}
+    fresh = numba.njit(**options)(f.py_func)
+    fresh(*args)
+    signature = fresh.signatures[0]
+    return fresh.inspect_asm(signature), fresh.inspect_llvm(signature)
+
+
+def vector_evidence(f, *args) -> dict:
+    """What the compiler made of the loop in ``f`` for ``args``: the packed instructions in its
+    assembly, the vector types in its IR (``<4 x double>``) and the C math calls left in it."""
+    asm, ir = assembly(f, *args)
+    return {"packed": len(PACKED.findall(asm)), "vector_types": sorted(set(re.findall(r"<\d+ x double>", ir))),
+            "c_math_calls": sorted({m.group(2) for m in C_MATH_CALL.finditer(ir)})}

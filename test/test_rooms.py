@@ -43,9 +43,9 @@ def test_the_import_contracts_hold():
 
 
 def compiled_functions(tree: ast.Module) -> list[ast.FunctionDef]:
-    """The functions decorated ``@jitable`` or ``@entry`` (jit.py)."""
+    """The functions decorated ``@jitable``, ``@inlined``, ``@entry`` or ``@lanes`` (jit.py)."""
     return [node for node in tree.body if isinstance(node, ast.FunctionDef)
-            and any(isinstance(d, ast.Name) and d.id in ("jitable", "entry") for d in node.decorator_list)]
+            and any(isinstance(d, ast.Name) and d.id in ("jitable", "inlined", "entry", "lanes") for d in node.decorator_list)]
 
 
 def module_of(path: Path) -> str:
