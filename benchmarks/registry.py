@@ -16,6 +16,8 @@ throughput/   how much is done in a second
   tick-parts      the tick's parts in two forms, side by side
   sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
   field           mta field run on a whole field: wall time on one core and where it goes
+  lanes           the lanes' math (physics/kernel/vmath.py) against libm, numpy and gcc's libmvec:
+                  ns per value, accuracy, the instructions each loop compiled to
 node/         the running node over DDS
   realtime        the node at real-time factor 1, steered by a player process (player.py; ``--stages``: the
                   node's tick profile, stages.py)
@@ -41,7 +43,7 @@ MODULES = {
     "method": "accuracy.method", "work_precision": "accuracy.work_precision", "stability": "accuracy.stability",
     "kinks": "accuracy.kinks", "fidelity": "accuracy.fidelity", "estimate": "accuracy.estimate",
     "scaling": "throughput.scaling", "tick_parts": "throughput.tick_parts", "sweep": "throughput.sweep",
-    "field": "throughput.field",
+    "field": "throughput.field", "lanes": "throughput.lanes",
     "realtime": "node.realtime", "sigkill": "node.sigkill", "flood": "node.flood",
     "reversing": "controllers.reversing",
 }

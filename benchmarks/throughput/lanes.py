@@ -1,0 +1,203 @@
+"""``python -m benchmarks lanes``: the lanes' math (mta_sim_ros/physics/kernel/vmath.py) against the
+C library, numpy and gcc's vector math, in nanoseconds per value, with each one's accuracy and the
+instructions its loop compiled to.
+
+For each function (sin and cos together, atan2, exp, tanh), on ``--values`` random arguments in
+the range the kernel meets, side by side in one process (the contenders take turns every round;
+medians of ``--rounds``; thread CPU time):
+
+- ``numba + libm``: a compiled loop calling ``math.*``, as the kernel does today: one call into the
+  C library per value, which LLVM cannot vectorise (PyPI's llvmlite has no SVML; docs/lanes.md)
+- ``vmath lanes``: the same loop over vmath's own polynomials (``vmath.*_lanes``), which LLVM
+  vectorises
+- ``numpy``: the ufunc (numpy's own SIMD loops where it has them)
+- ``gcc + libmvec``: lanes_floor.c, the same loop in C, built here by gcc -O3 -ffast-math
+  -march=native, which calls glibc's vector math library; the floor a C compiler reaches. Left out,
+  and said, where there is no gcc or no libmvec.
+
+Accuracy: the largest error of each in units in the last place of the C library's value (``math``),
+over the same arguments. Instructions: packed double-precision arithmetic in the assembly of the
+numba loops (jit.assembly) and the C library calls left in their LLVM IR; the vector entries the
+C floor calls (nm). Writes docs/benchmarks/lanes.md (and .json).
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import json
+import math
+import re
+import shutil
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mta_sim_ros.validate import COUNT, Range, number_arg, output_file, path_arg
+
+from ..common import header_lines, log, side_by_side, table, write_report
+
+HELP = "the lanes' math (vmath) against libm, numpy and gcc's libmvec: ns per value, accuracy, instructions"
+FLOOR = Path(__file__).with_name("lanes_floor.c")
+FUNCTIONS = ("sincos", "atan2", "exp", "tanh")
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--values", type=number_arg(Range.of(64, 10_000_000), int), default=4096,
+                   help="arguments per call, one per lane (default 4096)")
+    p.add_argument("--rounds", type=number_arg(COUNT, int), default=21, help="rounds (default 21)")
+    p.add_argument("--out", type=path_arg(output_file), default="docs/benchmarks/lanes.md", help="Markdown report")
+
+
+def arguments(n: int) -> dict[str, tuple]:
+    """Each function's arguments: the ranges a train's angles, ratios and laws meet."""
+    rng = np.random.default_rng(20261205)
+    return {"sincos": (rng.uniform(-10.0, 10.0, n),), "atan2": (rng.standard_normal(n), rng.standard_normal(n)),
+            "exp": (rng.uniform(-30.0, 30.0, n),), "tanh": (rng.uniform(-5.0, 5.0, n),)}
+
+
+def numba_libm():
+    """The loops of vmath.*_lanes with ``math.*`` in their bodies (the C library, a call a value)."""
+    import numba
+
+    @numba.njit(error_model="numpy")
+    def sincos(x, s, c):
+        for j in range(x.shape[0]):
+            s[j], c[j] = math.sin(x[j]), math.cos(x[j])
+
+    @numba.njit(error_model="numpy")
+    def atan2(y, x, out):
+        for j in range(x.shape[0]):
+            out[j] = math.atan2(y[j], x[j])
+
+    @numba.njit(error_model="numpy")
+    def exp(x, out):
+        for j in range(x.shape[0]):
+            out[j] = math.exp(x[j])
+
+    @numba.njit(error_model="numpy")
+    def tanh(x, out):
+        for j in range(x.shape[0]):
+            out[j] = math.tanh(x[j])
+
+    return {"sincos": sincos, "atan2": atan2, "exp": exp, "tanh": tanh}
+
+
+def numpy_ufuncs():
+    def sincos(x, s, c):
+        np.sin(x, out=s)
+        np.cos(x, out=c)
+
+    return {"sincos": sincos, "atan2": lambda y, x, out: np.arctan2(y, x, out=out),
+            "exp": lambda x, out: np.exp(x, out=out), "tanh": lambda x, out: np.tanh(x, out=out)}
+
+
+def gcc_floor(folder: Path) -> tuple[dict, list[str], str]:
+    """lanes_floor.c built and loaded: (function -> callable, the _ZGV entries it calls, why not)."""
+    gcc, libmvec = shutil.which("gcc"), ctypes.util.find_library("mvec")
+    if not gcc or not libmvec:
+        return {}, [], f"left out: {'no gcc' if not gcc else 'no libmvec (glibc >= 2.22 on x86-64)'}"
+    lib = folder / "lanes_floor.so"
+    flags = ["-O3", "-ffast-math", "-march=native", "-fPIC", "-shared"]
+    subprocess.run([gcc, *flags, str(FLOOR), "-o", str(lib), "-lmvec", "-lm"], check=True)
+    entries = sorted({m for m in re.findall(r"_ZGV\w+", subprocess.run(
+        ["nm", "-D", str(lib)], capture_output=True, text=True).stdout)}) if shutil.which("nm") else []
+    c = ctypes.CDLL(str(lib))
+    pointer = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+    floor = {}
+    for name in FUNCTIONS:
+        fn = getattr(c, f"{name}_lanes")
+        fn.argtypes, fn.restype = [pointer] * (2 if name in ("exp", "tanh") else 3) + [ctypes.c_long], None
+        floor[name] = (lambda f: lambda *a: f(*a, a[0].shape[0]))(fn)
+    return floor, entries, f"`gcc {' '.join(flags)} lanes_floor.c -lmvec -lm`"
+
+
+def outputs(name: str, n: int) -> tuple:
+    return (np.empty(n), np.empty(n)) if name == "sincos" else (np.empty(n),)
+
+
+def reference(name: str, args: tuple) -> list[np.ndarray]:
+    """The C library's values (``math``), one call a value."""
+    if name == "sincos":
+        return [np.array([math.sin(v) for v in args[0]]), np.array([math.cos(v) for v in args[0]])]
+    fn = {"atan2": math.atan2, "exp": math.exp, "tanh": math.tanh}[name]
+    return [np.array([fn(*v) for v in zip(*args)])]
+
+
+def max_ulp(fn, name: str, args: tuple, want: list[np.ndarray]) -> float:
+    out = outputs(name, args[0].shape[0])
+    fn(*args, *out)
+    return max(float((np.abs(g - w) / np.spacing(np.maximum(np.abs(w), np.finfo(float).tiny))).max())
+               for g, w in zip(out, want))
+
+
+def instructions(name: str, fn, args: tuple) -> tuple[int, bool]:
+    """(packed double-precision instructions in fn's assembly, a C library call left in its IR)."""
+    from mta_sim_ros import jit
+
+    seen = jit.vector_evidence(fn, *args, *outputs(name, args[0].shape[0]))
+    return seen["packed"], bool(seen["c_math_calls"])
+
+
+def main(args) -> int:
+    from mta_sim_ros import jit
+    from mta_sim_ros.physics.kernel import vmath
+
+    if not jit.ENABLED:
+        raise SystemExit(f"python -m benchmarks lanes: needs numba ({jit.NOTE})")
+    n = args.values
+    inputs = arguments(n)
+    with tempfile.TemporaryDirectory(prefix="mta_lanes_") as tmp:
+        floor, entries, built = gcc_floor(Path(tmp))
+        contenders = {"numba + libm": numba_libm(), "vmath lanes": {f: getattr(vmath, f"{f}_lanes") for f in FUNCTIONS},
+                      "numpy": numpy_ufuncs()}
+        if floor:
+            contenders["gcc + libmvec"] = floor
+        figures: dict = {"values": n, "rounds": args.rounds, "ns_per_value": {}, "max_ulp": {}, "instructions": {},
+                         "c_floor": {"built": built, "vector_entries": entries}}
+        for name in FUNCTIONS:
+            out = outputs(name, n)
+            variants = {label: (lambda f, a: lambda: f(*a, *out))(fns[name], inputs[name])
+                        for label, fns in contenders.items()}
+            for fn in variants.values():
+                fn()  # compile
+            times = side_by_side(variants, args.rounds, calls=20, clock=time.thread_time)
+            figures["ns_per_value"][name] = {k: 1e9 * statistics.median(v) / n for k, v in times.items()}
+            want = reference(name, inputs[name])
+            figures["max_ulp"][name] = {k: max_ulp(fns[name], name, inputs[name], want) for k, fns in contenders.items()}
+            figures["instructions"][name] = {k: instructions(name, contenders[k][name], inputs[name])
+                                             for k in ("numba + libm", "vmath lanes")}
+            log(f"{name}: " + ", ".join(f"{k} {v:.2f} ns" for k, v in figures["ns_per_value"][name].items()))
+    write_report(args.out, report(args, figures))
+    Path(args.out).with_suffix(".json").write_text(json.dumps(figures, indent=1) + "\n")
+    return 0
+
+
+def report(args, figures: dict) -> list[str]:
+    labels = list(figures["ns_per_value"]["sincos"])
+    lines = header_lines("The lanes' math: vmath against libm, numpy and gcc's libmvec", args)
+    lines += ["## Nanoseconds per value", "",
+              f"Medians of {figures['rounds']} rounds, {figures['values']} values a call, thread CPU time; the "
+              "contenders take turns every round. In brackets: how many times faster than numba + libm "
+              "(what the kernel's loops pay today).", ""]
+    rows = []
+    for name, ns in figures["ns_per_value"].items():
+        base = ns["numba + libm"]
+        rows.append([name] + [f"{ns[k]:.2f} ({base / ns[k]:.1f}x)" for k in labels])
+    lines += table(rows, ["function"] + labels, "lr") + [""]
+    lines += ["## Largest error, ulp of the C library's value", ""]
+    lines += table([[name] + [f"{u[k]:.2f}" for k in labels] for name, u in figures["max_ulp"].items()],
+                   ["function"] + labels, "lr") + [""]
+    lines += ["## What the loops compiled to", "",
+              "Packed double-precision instructions in the loop's assembly, and whether a call to the C "
+              "library is left in its LLVM IR (a call a value: no lanes).", ""]
+    lines += table([[name, *(f"{p} packed, {'calls the C library' if c else 'no call'}" for p, c in ins.values())]
+                    for name, ins in figures["instructions"].items()],
+                   ["function", "numba + libm", "vmath lanes"], "l") + [""]
+    floor = figures["c_floor"]
+    lines += [f"The C floor: {floor['built']}; the vector entries it calls: "
+              + (", ".join(f"`{e}`" for e in floor["vector_entries"]) or "none found") + ".", ""]
+    return lines
