@@ -8,6 +8,7 @@ C library function left in it."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -53,6 +54,17 @@ def test_sin_and_cos_are_within_one_ulp(scale):
     s, c = sincos(x)
     assert ulps(s, c_library(math.sin, x)).max() <= 1.0
     assert ulps(c, c_library(math.cos, x)).max() <= 1.0
+
+
+def test_sin_and_cos_at_zeros_infinities_and_nan():
+    x = np.array([0.0, -0.0, math.inf, -math.inf, math.nan])
+    s, c = sincos(x)
+    assert same(s, [0.0, -0.0, math.nan, math.nan, math.nan])
+    assert same(c, [1.0, 1.0, math.nan, math.nan, math.nan])
+    plain_s, plain_c = np.empty_like(x), np.empty_like(x)
+    with np.errstate(invalid="ignore"):  # plain Python too: numpy's inf - inf, no OverflowError
+        vmath.sincos_lanes.py_func(x, plain_s, plain_c)
+    assert same(plain_s, s) and same(plain_c, c)
 
 
 def test_atan2_is_within_two_ulp_and_the_c_library_at_zeros_and_infinities():
@@ -125,6 +137,26 @@ def test_the_evidence_sees_a_loop_that_calls_the_c_library():
     x = np.linspace(-3.0, 3.0, 64)
     seen = jit.vector_evidence(LIBM_ATAN2_LANES, x, x, np.empty_like(x))
     assert seen["packed"] == 0 and seen["c_math_calls"] == ["atan2"]
+
+
+@pytest.mark.skipif(not jit.ENABLED, reason="numba's own check: numba not used here")
+def test_numba_inlines_each_function_twice_into_one_loop_without_a_warning():
+    """Two inlined calls of a function holding an if-expression trip numba issue 9489 on Python 3.11
+    (NumbaIRAssumptionWarning: a variable not in scope); vmath's selects are ``pick`` calls instead."""
+    x = np.linspace(-3.0, 3.0, 64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        jit.vector_evidence(TWICE_LANES, x, np.empty_like(x))
+
+
+def twice_lanes(x, out):
+    for j in range(x.shape[0]):
+        s, c = vmath.sincos(x[j])
+        s2, c2 = vmath.sincos(s + c)
+        out[j] = vmath.atan2(s2, c2) + vmath.atan2(c2, s2) + vmath.tanh(s) + vmath.tanh(c) + vmath.exp(s) + vmath.exp(c)
+
+
+TWICE_LANES = jit.lanes(twice_lanes)
 
 
 def libm_atan2_lanes(y, x, out):

@@ -6,8 +6,8 @@ vectorises a loop holding such a call only through a vector math library. PyPI's
 SVML, and its LLVM maps glibc's libmvec for sin, cos, tan, exp, log and pow only (not atan2, not
 tanh; docs/lanes.md). So the kernel's transcendental functions are written here, each as the
 classic algorithm of fdlibm (Sun's freely distributable libm, the source of most C libraries' own)
-or Cephes, with every branch on a value turned into a select (``a if c else b``), which the
-vectoriser turns into a blend.
+or Cephes, with every branch on a value written as ``pick`` (a select, which the vectoriser turns
+into a blend) and every test of two conditions as ``&`` or ``|`` (``and`` and ``or`` branch).
 
 Accuracy, measured against the C library by test/test_vmath.py and charted by
 ``python -m benchmarks lanes``:
@@ -22,10 +22,10 @@ Accuracy, measured against the C library by test/test_vmath.py and charted by
     tanh(x)      Cephes: x + x^3 P(x^2)/Q(x^2) for |x| < 0.625, 1 - 2 / (exp(2|x|) + 1) above;
                  within 2 ulp
 
-NaN in gives NaN out. Each has a loop over lanes (``*_lanes``, compiled by ``jit.lanes``), which the
-tests and the benchmark read: its assembly holds packed instructions and no call. These are not the C library's values to the last bit, so a kernel that uses
-them is not bit-identical to the readable reference (which uses ``math``): the scalar kernel keeps
-``math``.
+NaN in gives NaN out. Each has a loop over lanes (``*_lanes``, compiled by ``jit.lanes``), which
+the tests and the benchmark read: its assembly holds packed instructions and no call. These are
+not the C library's values to the last bit, so a kernel that uses them is not bit-identical to the
+readable reference (which uses ``math``): the scalar kernel keeps ``math``.
 """
 from __future__ import annotations
 
@@ -33,7 +33,16 @@ import math
 
 import numpy as np
 
-from ...jit import inlined, lanes
+from ...jit import inlined, jitable, lanes
+
+@jitable
+def pick(condition, if_true, if_false):
+    """``if_true if condition else if_false``, as a function: LLVM inlines it as a select, which the
+    vectoriser turns into a blend. Written inline instead, the if-expression is a branch in numba's
+    IR, and inlining such a function twice into one caller trips numba issue 9489 (on Python 3.11:
+    NumbaIRAssumptionWarning, a variable not in scope)."""
+    return if_true if condition else if_false
+
 
 # -- sin and cos: fdlibm s_sin.c, k_sin.c, k_cos.c, e_rem_pio2.c -----------------------------------
 
@@ -53,7 +62,7 @@ REDUCTION_LIMIT = 2.0 ** 20 * PIO2_1
 @inlined
 def reduce_pio2(x):
     """(n mod 4, r, r's tail) with x = n pi/2 + r + tail, |r| <= pi/4 (to 151 bits of pi/2)."""
-    fn = math.floor(x * INV_PIO2 + 0.5)
+    fn = np.floor(x * INV_PIO2 + 0.5)  # a float, as Python's math.floor is not: inf and NaN pass
     r = x - fn * PIO2_1
     w = fn * PIO2_1T
     t = r  # second and third rounds, always: each only adds bits
@@ -66,8 +75,8 @@ def reduce_pio2(x):
     w = fn * PIO2_3T - ((t - r) - w)
     head = r - w
     tail = (r - head) - w
-    fn = fn if math.isfinite(fn) else 0.0
-    return int(fn - 4.0 * math.floor(0.25 * fn)), head, tail
+    fn = pick(math.isfinite(fn), fn, 0.0)
+    return int(fn - 4.0 * np.floor(0.25 * fn)), head, tail
 
 
 @inlined
@@ -82,10 +91,10 @@ def sincos(x):
     w = 1.0 - hz
     c = w + (((1.0 - w) - hz) + (z * (z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))) - r * tail))
     odd = (q & 1) != 0
-    sin_x = c if odd else s
-    cos_x = s if odd else c
-    sin_x = -sin_x if (q & 2) != 0 else sin_x
-    cos_x = -cos_x if ((q + 1) & 2) != 0 else cos_x
+    sin_x = pick(odd, c, s)
+    cos_x = pick(odd, s, c)
+    sin_x = pick((q & 2) != 0, -sin_x, sin_x)
+    cos_x = pick(((q + 1) & 2) != 0, -cos_x, cos_x)
     return sin_x, cos_x
 
 
@@ -105,19 +114,19 @@ PIO2_HI, PIO2_LO = 1.5707963267948965580e+00, 6.1232339957367658e-17
 @inlined
 def atan_unit(t):
     """atan t for 0 <= t <= 1 (NaN stays NaN): fdlibm's reduction to |t'| < 7/16 about 0, 1/2 or 1."""
-    middle = 0.4375 <= t < 0.6875
+    middle = (t >= 0.4375) & (t < 0.6875)
     upper = t >= 0.6875
-    num = 2.0 * t - 1.0 if middle else (t - 1.0 if upper else t)
-    den = 2.0 + t if middle else (t + 1.0 if upper else 1.0)
+    num = pick(middle, 2.0 * t - 1.0, pick(upper, t - 1.0, t))
+    den = pick(middle, 2.0 + t, pick(upper, t + 1.0, 1.0))
     u = num / den
     z = u * u
     w = z * z
     s1 = z * (AT0 + w * (AT2 + w * (AT4 + w * (AT6 + w * (AT8 + w * AT10)))))
     s2 = w * (AT1 + w * (AT3 + w * (AT5 + w * (AT7 + w * AT9))))
-    hi = ATAN_HALF_HI if middle else ATAN_ONE_HI
-    lo = ATAN_HALF_LO if middle else ATAN_ONE_LO
+    hi = pick(middle, ATAN_HALF_HI, ATAN_ONE_HI)
+    lo = pick(middle, ATAN_HALF_LO, ATAN_ONE_LO)
     reduced = hi - ((u * (s1 + s2) - lo) - u)
-    return reduced if middle or upper else u - u * (s1 + s2)
+    return pick(middle | upper, reduced, u - u * (s1 + s2))
 
 
 @inlined
@@ -125,18 +134,17 @@ def atan2(y, x):
     """atan2(y, x) in [-pi, pi], within 2 ulp; at zeros and infinities the C library's values."""
     a, b = abs(y), abs(x)
     big = a > b
-    hi = a if big else b
-    lo = b if big else a
-    both_inf = math.isinf(a) and math.isinf(b)
-    t = 1.0 if both_inf else (lo / hi if hi > 0.0 else 0.0)
+    hi = pick(big, a, b)
+    lo = pick(big, b, a)
+    t = pick(math.isinf(a) & math.isinf(b), 1.0, lo / pick(hi > 0.0, hi, 1.0))  # 0 / 0: 0
     z = atan_unit(t)
-    left = x < 0.0 or (x == 0.0 and math.copysign(1.0, x) < 0.0)
+    left = math.copysign(1.0, x) < 0.0  # x < 0 or x = -0 (NaN: the select below)
     # the angle as base + (+-z + base's tail), one rounding: pi/2 -+ z above the diagonal,
     # pi - z left of it, z right of it
-    base = PIO2_HI if big else (PI_HI if left else 0.0)
-    tail = PIO2_LO if big else (PI_LO if left else 0.0)
-    z = base + ((-z if big != left else z) + tail)
-    z = math.nan if (math.isnan(x) or math.isnan(y)) else z
+    base = pick(big, PIO2_HI, pick(left, PI_HI, 0.0))
+    tail = pick(big, PIO2_LO, pick(left, PI_LO, 0.0))
+    z = base + (pick(big != left, -z, z) + tail)
+    z = pick(math.isnan(x) | math.isnan(y), math.nan, z)
     return math.copysign(z, y)
 
 
@@ -155,9 +163,9 @@ POW2 = np.ldexp(1.0, np.arange(-POW2_HALF, POW2_HALF + 1))
 @inlined
 def exp(x):
     """e^x within 1 ulp (module docstring)."""
-    inside = EXP_MIN <= x <= EXP_MAX
-    xr = x if inside else 0.0
-    k = math.floor(xr * INV_LN2 + 0.5)
+    inside = (x >= EXP_MIN) & (x <= EXP_MAX)
+    xr = pick(inside, x, 0.0)
+    k = np.floor(xr * INV_LN2 + 0.5)
     hi = xr - k * LN2_HI
     lo = k * LN2_LO
     r = hi - lo
@@ -167,8 +175,8 @@ def exp(x):
     ki = int(k)
     half = ki // 2
     y = (y * POW2[POW2_HALF + half]) * POW2[POW2_HALF + ki - half]
-    outside = math.inf if x > EXP_MAX else (0.0 if x < EXP_MIN else x)  # NaN stays NaN
-    return y if inside else outside
+    outside = pick(x > EXP_MAX, math.inf, pick(x < EXP_MIN, 0.0, x))  # NaN stays NaN
+    return pick(inside, y, outside)
 
 
 # -- tanh: Cephes tanh.c ---------------------------------------------------------------------------
@@ -183,9 +191,9 @@ def tanh(x):
     z = abs(x)
     z2 = z * z
     small = z + z * z2 * ((TP0 * z2 + TP1) * z2 + TP2) / (((z2 + TQ0) * z2 + TQ1) * z2 + TQ2)
-    s = exp(2.0 * (22.0 if z > 22.0 else z))  # NaN stays NaN
+    s = exp(2.0 * pick(z > 22.0, 22.0, z))  # NaN stays NaN
     large = 1.0 - 2.0 / (s + 1.0)
-    return math.copysign(small if z < 0.625 else large, x)  # odd, and -0 stays -0
+    return math.copysign(pick(z < 0.625, small, large), x)  # odd, and -0 stays -0
 
 
 # -- loops over lanes: what the tests and ``python -m benchmarks lanes`` compile and read ----------
