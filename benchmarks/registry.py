@@ -17,7 +17,8 @@ throughput/   how much is done in a second
   sweep           a sweep's run against run_scene, fidelity auto's set-up, 1 and 2 workers, runs against time
   field           mta field run on a whole field: wall time on one core and where it goes
   lanes           the lanes' math (physics/kernel/vmath.py) against libm, numpy and gcc's libmvec:
-                  ns per value, accuracy, the instructions each loop compiled to
+                  ns per value, accuracy, the instructions each loop compiled to; the shapes of a
+                  loop over schemes that LLVM vectorises (lanes_shapes.py)
 node/         the running node over DDS
   realtime        the node at real-time factor 1, steered by a player process (player.py; ``--stages``: the
                   node's tick profile, stages.py)

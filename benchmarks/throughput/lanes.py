@@ -18,7 +18,12 @@ medians of ``--rounds``; thread CPU time):
 Accuracy: the largest error of each in units in the last place of the C library's value (``math``),
 over the same arguments. Instructions: packed double-precision arithmetic in the assembly of the
 numba loops (jit.assembly) and the C library calls left in their LLVM IR; the vector entries the
-C floor calls (nm). Writes docs/benchmarks/lanes.md (and .json).
+C floor calls (nm).
+
+Then the shapes of a loop over a batch of schemes (lanes_shapes.py): one walk of the kinematic
+chain for 2, 3 and 5 carts and 1 to 256 lanes, one scheme a call (today's kernel) against the two
+ways of putting the schemes across the lanes; which of them LLVM vectorises, and at what speed.
+Writes docs/benchmarks/lanes.md (and .json).
 """
 from __future__ import annotations
 
@@ -43,6 +48,7 @@ from ..common import header_lines, log, side_by_side, table, write_report
 HELP = "the lanes' math (vmath) against libm, numpy and gcc's libmvec: ns per value, accuracy, instructions"
 FLOOR = Path(__file__).with_name("lanes_floor.c")
 FUNCTIONS = ("sincos", "atan2", "exp", "tanh")
+CARTS, WIDTHS = (2, 3, 5), (1, 8, 64, 256)
 
 
 def add_arguments(p) -> None:
@@ -167,11 +173,13 @@ def main(args) -> int:
             times = side_by_side(variants, args.rounds, calls=20, clock=time.thread_time)
             figures["ns_per_value"][name] = {k: 1e9 * statistics.median(v) / n for k, v in times.items()}
             want = reference(name, inputs[name])
-            figures["max_ulp"][name] = {k: max_ulp(fns[name], name, inputs[name], want) for k, fns in contenders.items()}
+            figures["max_ulp"][name] = {k: max_ulp(fns[name], name, inputs[name], want)
+                                        for k, fns in contenders.items()}
             figures["instructions"][name] = {k: instructions(name, contenders[k][name], inputs[name])
                                              for k in ("numba + libm", "vmath lanes")}
             log(f"{name}: " + ", ".join(f"{k} {v:.2f} ns" for k, v in figures["ns_per_value"][name].items()))
-    write_report(args.out, report(args, figures))
+    figures["shapes"] = loop_shapes(args.rounds)
+    write_report(args.out, report(args, figures) + shapes_report(figures["shapes"]))
     Path(args.out).with_suffix(".json").write_text(json.dumps(figures, indent=1) + "\n")
     return 0
 
@@ -200,4 +208,53 @@ def report(args, figures: dict) -> list[str]:
     floor = figures["c_floor"]
     lines += [f"The C floor: {floor['built']}; the vector entries it calls: "
               + (", ".join(f"`{e}`" for e in floor["vector_entries"]) or "none found") + ".", ""]
+    return lines
+
+
+def loop_shapes(rounds: int) -> dict:
+    """ns per scheme of one walk of the chain in each shape (lanes_shapes.py), per carts and width;
+    the packed instructions of each; the largest difference from the scalar shape's dy."""
+    from mta_sim_ros import jit
+
+    from . import lanes_shapes
+
+    out: dict = {}
+    for n in CARTS:
+        contenders = lanes_shapes.shapes(n)
+        for width in WIDTHS:
+            soa = lanes_shapes.batch(n, width)
+            args = {label: lanes_shapes.rows(soa) if by_rows else soa for label, (_, by_rows) in contenders.items()}
+            variants = {label: (lambda f, a: lambda: f(*a))(fn, args[label]) for label, (fn, _) in contenders.items()}
+            for fn in variants.values():
+                fn()
+            times = side_by_side(variants, rounds, calls=max(1, 4096 // width), clock=time.thread_time)
+            scalar_dy = args["scalar"][2].T
+            out[f"{n} carts, {width} lane{'s' if width > 1 else ''}"] = {
+                "ns": {k: 1e9 * statistics.median(v) / width for k, v in times.items()},
+                "max_diff": {k: float(np.abs(args[k][2] - scalar_dy).max()) for k in ("lanes out", "lanes in")}}
+        out[f"{n} carts, packed"] = {label: jit.vector_evidence(fn, *args[label])["packed"]
+                                     for label, (fn, _) in contenders.items()}
+        widest = out[f"{n} carts, {WIDTHS[-1]} lanes"]["ns"]
+        log(f"shapes, {n} carts, {WIDTHS[-1]} lanes: " + ", ".join(f"{k} {v:.1f} ns" for k, v in widest.items()))
+    return out
+
+
+def shapes_report(shapes: dict) -> list[str]:
+    lines = ["## Shapes of a loop over schemes", "",
+             "One walk of the kinematic chain (sin, cos, atan2, sqrt a cart; `benchmarks/throughput/lanes_shapes.py`) "
+             "for a batch of random trains, in three shapes: `scalar`, one scheme a call with `math.*` (the kernel "
+             "today); `lanes out`, that body in a loop over lanes with vmath, the number of carts frozen at compile "
+             "time; `lanes in`, the carts' loop outside and a loop over lanes inside each of its steps. "
+             "ns per scheme, medians, thread CPU time, in turns; in brackets the speed-up over `scalar`. At 1 lane "
+             "the call from Python (about half a microsecond) is most of each figure.", ""]
+    labels = ["scalar", "lanes out", "lanes in"]
+    rows = []
+    for key, fig in shapes.items():
+        if "ns" in fig:
+            ns = fig["ns"]
+            rows.append([key] + [f"{ns[k]:.1f} ({ns['scalar'] / ns[k]:.2f}x)" for k in labels]
+                        + [f"{max(fig['max_diff'].values()):.1e}"])
+    lines += table(rows, ["batch"] + labels + ["largest difference in dy"], "lr") + [""]
+    packed = [[key.split(",")[0]] + [str(fig[k]) for k in labels] for key, fig in shapes.items() if "ns" not in fig]
+    lines += table(packed, ["packed instructions"] + labels, "lr") + [""]
     return lines
