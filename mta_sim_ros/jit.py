@@ -2,7 +2,7 @@
 
 The kernels (``physics/kernel/``, ``integrate/rk.py``, ``run/whole.py``, ``run/offsets.py``,
 ``controllers/implement/loop.py``) are written once, in the subset of Python that numba compiles.
-Two decorators give them their two lives:
+Four decorators give them their two lives:
 
 ``jitable``  a function the kernels call from each other: plain Python when called from Python,
              compiled into its caller when called from compiled code (numba's register_jitable).
@@ -18,7 +18,8 @@ Two decorators give them their two lives:
              LLVM from vectorising the loop.
 
 Without numba, or with the environment variable ``MTA_SIM_NO_JIT=1`` set when the package is
-imported, both decorators leave the function as it is (``entry`` adds ``py_func``, itself).
+imported, the decorators leave the function as it is (``entry`` and ``lanes`` add ``py_func``,
+itself).
 ``ENABLED`` and ``NOTE`` say which holds.
 
 The compile unit. numba checks a cached function against the source file it is defined in, not

@@ -4,7 +4,8 @@ a batch of schemes (one scheme per SIMD lane) that calls these runs as packed in
 Why: numba leaves ``math.sin`` and the like to the C library, one call per value, and LLVM
 vectorises a loop holding such a call only through a vector math library. PyPI's llvmlite has no
 SVML, and its LLVM maps glibc's libmvec for sin, cos, tan, exp, log and pow only (not atan2, not
-tanh; docs/lanes.md). So the kernel's transcendental functions are written here, each as the
+tanh; docs/lanes.md). So the transcendental functions a batched kernel needs are written here
+(no kernel calls them yet: issue 24), each as the
 classic algorithm of fdlibm (Sun's freely distributable libm, the source of most C libraries' own)
 or Cephes, with every branch on a value written as ``pick`` (a select, which the vectoriser turns
 into a blend) and every test of two conditions as ``&`` or ``|`` (``and`` and ``or`` branch).
@@ -13,12 +14,13 @@ Accuracy, measured against the C library by test/test_vmath.py and charted by
 ``python -m benchmarks lanes``:
 
     sincos(x)    fdlibm's __kernel_sin/__kernel_cos after a three-part Cody-Waite reduction by
-                 pi/2 (151 bits of pi/2); within 1 ulp for |x| <= REDUCTION_LIMIT (about 1.6e6 rad)
+                 pi/2 (151 bits of pi/2); within 1 ulp for |x| <= REDUCTION_LIMIT (about 1.6e6 rad),
+                 NaN beyond (the reduction would need more bits of pi/2 than it carries)
     atan2(y, x)  fdlibm's atan polynomial on min(|x|, |y|) / max(|x|, |y|) reduced to [0, 7/16),
                  then the octant in one rounding; within 2 ulp, and the C library's value at zeros
                  and infinities
     exp(x)       fdlibm's exp (Remez rational on [-ln2/2, ln2/2]), 2^k from a table; within 1 ulp,
-                 0 below -745.2 and inf above 709.8
+                 0 below EXP_MIN (-745.13) and inf above EXP_MAX (709.78)
     tanh(x)      Cephes: x + x^3 P(x^2)/Q(x^2) for |x| < 0.625, 1 - 2 / (exp(2|x|) + 1) above;
                  within 2 ulp
 
@@ -64,7 +66,6 @@ def reduce_pio2(x):
     """(n mod 4, r, r's tail) with x = n pi/2 + r + tail, |r| <= pi/4 (to 151 bits of pi/2)."""
     fn = np.floor(x * INV_PIO2 + 0.5)  # a float, as Python's math.floor is not: inf and NaN pass
     r = x - fn * PIO2_1
-    w = fn * PIO2_1T
     t = r  # second and third rounds, always: each only adds bits
     w = fn * PIO2_2
     r = t - w
@@ -81,7 +82,7 @@ def reduce_pio2(x):
 
 @inlined
 def sincos(x):
-    """(sin x, cos x), within 1 ulp for |x| <= REDUCTION_LIMIT (module docstring)."""
+    """(sin x, cos x), within 1 ulp for |x| <= REDUCTION_LIMIT, NaN beyond (module docstring)."""
     q, r, tail = reduce_pio2(x)
     z = r * r
     v = z * r
@@ -95,7 +96,8 @@ def sincos(x):
     cos_x = pick(odd, s, c)
     sin_x = pick((q & 2) != 0, -sin_x, sin_x)
     cos_x = pick(((q + 1) & 2) != 0, -cos_x, cos_x)
-    return sin_x, cos_x
+    reduced = abs(x) <= REDUCTION_LIMIT  # False for inf and NaN too
+    return pick(reduced, sin_x, math.nan), pick(reduced, cos_x, math.nan)
 
 
 # -- atan2: fdlibm s_atan.c, e_atan2.c ------------------------------------------------------------
