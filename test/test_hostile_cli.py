@@ -123,6 +123,7 @@ TOOL_FAULTS = [
     ("bench-out", ["bench", "kinks", "--out", "{tmp}/DIR"], ["argument --out: ", "it is a folder"]),
     ("bench-ticks", ["bench", "scaling", "--ticks", "many"], ["argument --ticks: many", "an integer"]),
     ("bench-sigkill-factor", ["bench", "sigkill", "--factors", "1", "nan"], ["argument --factors: nan", "in [0, 1000]"]),
+    ("bench-lanes-values", ["bench", "lanes", "--values", "0"], ["argument --values: 0", "in [64, 1e+07]"]),
     ("node-params-file-folder", ["node", "--params-file", "{tmp}/DIR"], ["file: unreadable"]),
     ("no-command", ["fly"], ["argument COMMAND: invalid choice: 'fly'"]),
     ("equations-onto-its-train", ["equations", "{tmp}/train.yaml", "--out", "{tmp}/train.yaml"],

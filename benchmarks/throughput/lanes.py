@@ -22,7 +22,9 @@ C floor calls (nm).
 
 Then the shapes of a loop over a batch of schemes (lanes_shapes.py): one walk of the kinematic
 chain for 2, 3 and 5 carts and 1 to 256 lanes, one scheme a call (today's kernel) against the two
-ways of putting the schemes across the lanes; which of them LLVM vectorises, and at what speed.
+ways of putting the schemes across the lanes; which of them LLVM vectorises, and at what speed;
+and at one lane, called from compiled code (the node's tick as a batch of one), the vectorisable
+shape with vmath and with the C library bound, against the scalar walk.
 Writes docs/benchmarks/lanes.md (and .json).
 """
 from __future__ import annotations
@@ -49,6 +51,7 @@ HELP = "the lanes' math (vmath) against libm, numpy and gcc's libmvec: ns per va
 FLOOR = Path(__file__).with_name("lanes_floor.c")
 FUNCTIONS = ("sincos", "atan2", "exp", "tanh")
 CARTS, WIDTHS = (2, 3, 5), (1, 8, 64, 256)
+ONE_LANE_CALLS = 20_000  # calls from compiled code, one lane each, a figure
 
 
 def add_arguments(p) -> None:
@@ -108,10 +111,15 @@ def gcc_floor(folder: Path) -> tuple[dict, list[str], str]:
         return {}, [], f"left out: {'no gcc' if not gcc else 'no libmvec (glibc >= 2.22 on x86-64)'}"
     lib = folder / "lanes_floor.so"
     flags = ["-O3", "-ffast-math", "-march=native", "-fPIC", "-shared"]
-    subprocess.run([gcc, *flags, str(FLOOR), "-o", str(lib), "-lmvec", "-lm"], check=True)
+    try:
+        subprocess.run([gcc, *flags, str(FLOOR), "-o", str(lib), "-lmvec", "-lm"], check=True,
+                       capture_output=True, text=True, timeout=120)
+        c = ctypes.CDLL(str(lib))
+    except (subprocess.SubprocessError, OSError) as err:
+        detail = getattr(err, "stderr", None) or str(err)
+        return {}, [], f"left out: gcc could not build or load lanes_floor.c ({detail.strip().splitlines()[-1]})"
     entries = sorted({m for m in re.findall(r"_ZGV\w+", subprocess.run(
         ["nm", "-D", str(lib)], capture_output=True, text=True).stdout)}) if shutil.which("nm") else []
-    c = ctypes.CDLL(str(lib))
     pointer = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
     floor = {}
     for name in FUNCTIONS:
@@ -234,6 +242,21 @@ def loop_shapes(rounds: int) -> dict:
                 "max_diff": {k: float(np.abs(args[k][2] - scalar_dy).max()) for k in ("lanes out", "lanes in")}}
         out[f"{n} carts, packed"] = {label: jit.vector_evidence(fn, *args[label])["packed"]
                                      for label, (fn, _) in contenders.items()}
+        one = lanes_shapes.batch(n, 1)
+        forms = {"scalar": (lanes_shapes.scalar, lanes_shapes.rows(one)), "lanes in": (lanes_shapes.lanes_in, one),
+                 "lanes in, libm": (lanes_shapes.lanes_in_libm, one)}
+        repeats = {k: (lambda r, a: lambda: r(*a, ONE_LANE_CALLS))(lanes_shapes.repeated(fn), a)
+                   for k, (fn, a) in forms.items()}
+        for fn in repeats.values():
+            fn()
+        times = side_by_side(repeats, rounds, clock=time.thread_time)
+        out[f"{n} carts, one lane in compiled code"] = {k: 1e9 * statistics.median(v) / ONE_LANE_CALLS
+                                                        for k, v in times.items()}
+        by_rows, by_lanes = lanes_shapes.rows(lanes_shapes.batch(n, WIDTHS[-1])), lanes_shapes.batch(n, WIDTHS[-1])
+        lanes_shapes.scalar(*by_rows)
+        lanes_shapes.lanes_in_libm(*by_lanes)
+        out[f"{n} carts, one lane in compiled code"]["libm bit-identical"] = bool(
+            np.array_equal(by_rows[2].T, by_lanes[2]))  # on every scheme of the widest batch
         widest = out[f"{n} carts, {WIDTHS[-1]} lanes"]["ns"]
         log(f"shapes, {n} carts, {WIDTHS[-1]} lanes: " + ", ".join(f"{k} {v:.1f} ns" for k, v in widest.items()))
     return out
@@ -255,6 +278,17 @@ def shapes_report(shapes: dict) -> list[str]:
             rows.append([key] + [f"{ns[k]:.1f} ({ns['scalar'] / ns[k]:.2f}x)" for k in labels]
                         + [f"{max(fig['max_diff'].values()):.1e}"])
     lines += table(rows, ["batch"] + labels + ["largest difference in dy"], "lr") + [""]
-    packed = [[key.split(",")[0]] + [str(fig[k]) for k in labels] for key, fig in shapes.items() if "ns" not in fig]
+    packed = [[key.split(",")[0]] + [str(fig[k]) for k in labels]
+              for key, fig in shapes.items() if key.endswith("packed")]
     lines += table(packed, ["packed instructions"] + labels, "lr") + [""]
+    lines += ["One lane, the walk called from compiled code (no Python call in the figure): the node's tick as a "
+              "batch of one; `lanes in, libm` is the same source with `math.*` bound in place of vmath's. "
+              "ns a call, medians; in brackets x scalar.", ""]
+    forms = ("scalar", "lanes in", "lanes in, libm")
+    one = [[key.split(",")[0]] + [f"{f[k]:.1f} ({f[k] / f['scalar']:.2f}x)" for k in forms]
+           for key, f in shapes.items() if key.endswith("compiled code")]
+    lines += table(one, ["train", *forms], "lr") + [""]
+    same = all(f["libm bit-identical"] for key, f in shapes.items() if key.endswith("compiled code"))
+    lines += [f"`lanes in, libm` gives dy {'bit for bit equal to' if same else 'NOT equal to'} the scalar "
+              f"shape's, on each of {WIDTHS[-1]} random trains of each length.", ""]
     return lines

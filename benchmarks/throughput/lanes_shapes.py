@@ -19,6 +19,7 @@ import math
 import numba
 import numpy as np
 
+from mta_sim_ros.jit import jitable
 from mta_sim_ros.physics.kernel import vmath
 
 
@@ -62,22 +63,45 @@ def lanes_out(n: int):
     return run
 
 
-@numba.njit(error_model="numpy")
-def lanes_in(P, Y, DY, kv, pv):
-    L, n = Y.shape[1], P.shape[0] // 2
-    for j in range(L):
-        kv[j], pv[j] = 1.0, Y[n + 2, j]
-    for k in range(n):
-        nxt = min(k + 1, n - 1)  # the last cart's psi_{k+1} is computed and not used
+def lanes_in_with(sincos, atan2):
+    """The ``lanes in`` shape with its math bound at compile time: one source, two compiled forms."""
+    @numba.njit(error_model="numpy")
+    def run(P, Y, DY, kv, pv):
+        L, n = Y.shape[1], P.shape[0] // 2
         for j in range(L):
-            s, c = vmath.sincos(pv[j])
-            DY[2 + k, j] = kv[j] * s / P[2 * k, j] * Y[n + 3, j]
-            lam = P[2 * k + 1, j]
-            kv[j] = kv[j] * math.sqrt(c * c + lam * lam * s * s)
-            pv[j] = Y[2 + k, j] - Y[2 + nxt, j] - vmath.atan2(lam * s, c)
-    for j in range(L):
-        s1, c1 = vmath.sincos(Y[2, j] + Y[n + 2, j])
-        DY[0, j], DY[1, j] = Y[n + 3, j] * c1, Y[n + 3, j] * s1
+            kv[j], pv[j] = 1.0, Y[n + 2, j]
+        for k in range(n):
+            nxt = min(k + 1, n - 1)  # the last cart's psi_{k+1} is computed and not used
+            for j in range(L):
+                s, c = sincos(pv[j])
+                DY[2 + k, j] = kv[j] * s / P[2 * k, j] * Y[n + 3, j]
+                lam = P[2 * k + 1, j]
+                kv[j] = kv[j] * math.sqrt(c * c + lam * lam * s * s)
+                pv[j] = Y[2 + k, j] - Y[2 + nxt, j] - atan2(lam * s, c)
+        for j in range(L):
+            s1, c1 = sincos(Y[2, j] + Y[n + 2, j])
+            DY[0, j], DY[1, j] = Y[n + 3, j] * c1, Y[n + 3, j] * s1
+    return run
+
+
+@jitable
+def libm_sincos(x):
+    return math.sin(x), math.cos(x)
+
+
+lanes_in = lanes_in_with(vmath.sincos, vmath.atan2)
+lanes_in_libm = lanes_in_with(libm_sincos, math.atan2)
+
+
+def repeated(fn):
+    """``fn`` ``times`` over, from compiled code: one call's cost without Python's (at one lane: the
+    node's tick as a batch of one)."""
+    @numba.njit
+    def run(P, Y, DY, kv, pv, times):
+        for _ in range(times):
+            fn(P, Y, DY, kv, pv)
+            Y[0, 0] += DY[0, 0] * 1e-300  # a store after each call (y[0] is not read by the walk)
+    return run
 
 
 def batch(n: int, width: int, seed: int = 0) -> tuple:
