@@ -49,6 +49,7 @@ _ROSDEP_KEYS = {
     'pandas': 'python3-pandas',
     'psutil': 'python3-psutil',
     'mcap_ros2': 'mcap-ros2-support',
+    'rasterio': 'python3-rasterio',  # a GeoTIFF height grid (also setup.py's extra `terrain`)
 }
 #: the plain (non-ROS-package) rosdep keys rosdistro defines that package.xml may name, read from
 #: rosdep/python.yaml of ros/rosdistro at 8468e88 (2026-08-22): a key not in rosdistro makes
@@ -56,7 +57,7 @@ _ROSDEP_KEYS = {
 ROSDISTRO_KEYS = {
     'python3-numpy', 'python3-scipy', 'python3-yaml', 'python3-matplotlib', 'python3-shapely', 'python3-pyproj',
     'python3-numba', 'mcap-ros2-support', 'python3-sympy', 'python3-pandas', 'python3-psutil', 'python3-pytest',
-    'python3-hypothesis',
+    'python3-hypothesis', 'python3-rasterio',
 }
 #: the ROS packages package.xml may name: released for Jazzy, read from jazzy/distribution.yaml of
 #: ros/rosdistro at 8468e88 (each repository's release packages); rosdep resolves only those
