@@ -48,6 +48,7 @@ UNIT = (
     "physics/kernel/laws.py",
     "physics/kernel/relief.py",
     "physics/kernel/vmath.py",
+    "physics/kernel/walk.py",
     "physics/kernel/motion.py",
     "physics/kernel/entries.py",
     "physics/kernel/inverse.py",

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from ...jit import jitable
+from ...jit import inlined, jitable
 from .base import (
     CART_SIZE,
     C,
@@ -27,6 +27,11 @@ from .base import (
     pymax,
     pymin,
 )
+from .vmath import pick
+from .walk import LIBM
+
+#: the walk's pieces with the C library's math (walk.py): the scalar kernel is the reference's to the bit
+libm_grade, libm_resisted = LIBM.grade, LIBM.resisted
 
 
 @jitable
@@ -35,22 +40,30 @@ def steering_rate(P, psi1, command, max_rate, branch):
     / tau, +-max_rate), a first-order lag with a rate limit, as a hydraulic steering cylinder moves.
     ``max_rate`` is an input held with the command (the train's own ``P[H.max_rate]``, or the rate an
     ackermann_cmd asks for); with ``branch`` HIGH the rate limit's side (+-max_rate), LOW the linear
-    side, NATURAL as the state is."""
-    max_angle = P[H.max_angle]
+    side, NATURAL as the state is (``steering``)."""
+    return steering(P[H.max_angle], P[H.time_constant], psi1, command, max_rate, branch)
+
+
+@inlined
+def steering(max_angle, time_constant, psi1, command, max_rate, branch):
+    """``steering_rate`` on numbers, every branch computed and one picked (a loop over lanes, each
+    on its own branch, vectorises)."""
     target = pymin(pymax(command, -max_angle), max_angle)
-    if branch == NATURAL:
-        return pymin(pymax((target - psi1) / P[H.time_constant], -max_rate), max_rate)
-    if branch == HIGH:
-        return max_rate if target > psi1 else -max_rate
-    return (target - psi1) / P[H.time_constant]
+    linear = (target - psi1) / time_constant
+    limited = pick(target > psi1, max_rate, -max_rate)
+    return pick(branch == NATURAL, pymin(pymax(linear, -max_rate), max_rate), pick(branch == HIGH, limited, linear))
 
 
-@jitable
+@inlined
 def held_abs(x, branch):
     """|x|, or with a held branch the side of it (+x for HIGH, -x for LOW)."""
-    if branch == NATURAL:
-        return abs(x)
-    return x if branch == HIGH else -x
+    return pick(branch == NATURAL, abs(x), pick(branch == HIGH, x, -x))
+
+
+@inlined
+def draft_force(soil_factor, A, B, C, width, depth, speed_kmh):
+    """One ASABE D497 draft, N: F_i (A + B S + C S^2) W T at S = ``speed_kmh``."""
+    return soil_factor * (A + B * speed_kmh + C * speed_kmh * speed_kmh) * width * depth
 
 
 @jitable
@@ -66,10 +79,9 @@ def resistance(P, k, axle_speed, branch, normal=1.0):
     base = HEAD_SIZE + CART_SIZE * int(P[H.n])
     for i in range(first, first + count):
         d = base + DRAFT_SIZE * i
-        S = held_abs(axle_speed, branch) * MS_TO_KMH
-        total += P[d + D.soil_factor] * (P[d + D.A] + P[d + D.B] * S + P[d + D.C] * S * S) * P[d + D.width] \
-            * P[d + D.depth]
-    return total * math.tanh(axle_speed / P[H.smoothing_speed])
+        total += draft_force(P[d + D.soil_factor], P[d + D.A], P[d + D.B], P[d + D.C], P[d + D.width], P[d + D.depth],
+                             held_abs(axle_speed, branch) * MS_TO_KMH)
+    return libm_resisted(total, axle_speed, P[H.smoothing_speed])
 
 
 @jitable
@@ -79,10 +91,7 @@ def grade_resistance(P, k, heading, kapB, kapT):
     C_k = B_k + c_k e_k, B_k rolling along e_k). > 0 while the cart climbs; times V it is the
     power that lifts the cart, m_k g dz_Ck/dt. It enters Q as the resistances do."""
     b = HEAD_SIZE + CART_SIZE * k
-    ex, ey = math.cos(heading), math.sin(heading)
-    com_rate = P[b + C.com_offset] * kapT
-    vx, vy = kapB * ex - com_rate * ey, kapB * ey + com_rate * ex
-    return -P[b + C.mass] * (P[H.gravity_x] * vx + P[H.gravity_y] * vy)
+    return libm_grade(heading, kapB, kapT, P[b + C.com_offset], P[b + C.mass], P[H.gravity_x], P[H.gravity_y])
 
 
 @jitable
@@ -109,42 +118,52 @@ def traction_law(P, V, v_set, z, mode):
     law = int(P[H.law])
     i_sat, i_limit, i_floor, i_accel, _ = switch_layout(P)
     if law == PRESCRIBED:
-        a = (v_set - V) / P[H.response_time]
-        return 0.0, clip_held(a, P[H.max_accel], held_branch(mode, i_accel)), 0.0, True
+        return 0.0, prescribed_accel(P[H.response_time], P[H.max_accel], V, v_set, held_branch(mode, i_accel)), \
+            0.0, True
     if law == GOVERNOR:
-        error = v_set - V
-        u = P[H.kp] * error + z
-        limit = traction_limit(P, V, held_branch(mode, i_limit), held_branch(mode, i_floor))
-        traction = clip_held(u, limit, held_branch(mode, i_sat))
-        return traction, 0.0, P[H.ki] * error + (traction - u) / P[H.windup_time], False
+        traction, rate = governor(P[H.kp], P[H.ki], P[H.windup_time], P[H.max_force], P[H.max_power], V, v_set, z,
+                                  held_branch(mode, i_sat), held_branch(mode, i_limit), held_branch(mode, i_floor))
+        return traction, 0.0, rate, False
     return P[H.force], 0.0, 0.0, False
 
 
-@jitable
+@inlined
+def prescribed_accel(response_time, max_accel, V, v_set, accel_branch):
+    """The prescribed speed's V' = (v_set - V) / response_time clipped to +-max_accel."""
+    return clip_held((v_set - V) / response_time, max_accel, accel_branch)
+
+
+@inlined
+def governor(kp, ki, windup_time, max_force, max_power, V, v_set, z, sat_branch, limit_branch, floor_branch):
+    """The governor's (F_A1, z') on numbers (``traction_law``)."""
+    error = v_set - V
+    u = kp * error + z
+    traction = clip_held(u, limit_of(max_force, max_power, V, limit_branch, floor_branch), sat_branch)
+    return traction, ki * error + (traction - u) / windup_time
+
+
+@inlined
 def clip_held(x, limit, branch):
     """x clipped to +-limit (Python's min(max(x, -limit), limit)); with a held branch, x itself (LOW)
     or the limit on x's side (HIGH)."""
-    if branch == NATURAL:
-        return pymin(pymax(x, -limit), limit)
-    if branch == LOW:
-        return x
-    return limit if x > 0.0 else -limit
+    return pick(branch == NATURAL, pymin(pymax(x, -limit), limit), pick(branch == LOW, x, pick(x > 0.0, limit, -limit)))
 
 
 @jitable
 def traction_limit(P, V, limit_branch, floor_branch):
     """Largest |F_A1| at speed V: adhesion, and engine power over speed,
     min(max_force, max_power / max(|V|, 0.1)); held branches: the power limit (HIGH) or the force
-    limit (LOW) of the min, |V| (HIGH) or 0.1 (LOW) of the max."""
-    if math.isinf(P[H.max_power]):
-        return P[H.max_force]
-    if floor_branch == NATURAL:
-        speed = pymax(abs(V), 0.1)
-    else:
-        speed = abs(V) if floor_branch == HIGH else 0.1
-    if limit_branch == NATURAL:
-        return pymin(P[H.max_force], P[H.max_power] / speed)
-    return P[H.max_power] / speed if limit_branch == HIGH else P[H.max_force]
+    limit (LOW) of the min, |V| (HIGH) or 0.1 (LOW) of the max (``limit_of``)."""
+    return limit_of(P[H.max_force], P[H.max_power], V, limit_branch, floor_branch)
+
+
+@inlined
+def limit_of(max_force, max_power, V, limit_branch, floor_branch):
+    """``traction_limit`` on numbers: max_force alone where max_power is infinite."""
+    speed = pick(floor_branch == NATURAL, pymax(abs(V), 0.1), pick(floor_branch == HIGH, abs(V), 0.1))
+    per_power = max_power / pick(limit_branch == LOW, 1.0, speed)  # held on the force limit: not divided
+    limit = pick(limit_branch == NATURAL, pymin(max_force, per_power), pick(limit_branch == HIGH, per_power, max_force))
+    return pick(math.isinf(max_power), max_force, limit)
 
 
 @jitable

@@ -55,6 +55,10 @@ from .base import (
 )
 from .laws import grade_resistance, resistance, steering_rate, switch_layout, traction_law, traction_limit
 from .relief import off_relief, relief_grade, surface
+from .walk import LIBM, forward_acceleration, inertia, inverse_traction
+
+#: the walk's pieces with the C library's math (walk.py): y' is the reference's to the bit
+kinematics, next_link, course = LIBM.kinematics, LIBM.next_link, LIBM.course
 
 
 @jitable
@@ -97,23 +101,13 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
     for k in range(n):
         b = HEAD_SIZE + CART_SIZE * k
         l_k = P[b + C.length]
-        s, c = math.sin(p_val), math.cos(p_val)
-        t_val = k_val * s / l_k  # kapT_k
-        theta_rate = t_val * V
-        if k:  # psi_k = th_{k-1} - th_k - beta_{k-1}
-            p_dot = theta_rate_prev - theta_rate - beta_dot_prev
-        s_dot, c_dot = c * p_dot, -s * p_dot
-        b_val = k_val * c  # kapB_k
+        s, c, t_val, theta_rate, p_dot, s_dot, c_dot, b_val = kinematics(k_val, p_val, p_dot, theta_rate_prev,
+                                                                         beta_dot_prev, l_k, V, k == 0)
         if forces_on:
-            mu2 = P[b + C.mu2]
-            t_dot = (k_dot * s + k_val * s_dot) / l_k
-            rc = math.sqrt(c * c + mu2 * s * s)  # s'_Ck / V_k; (mu2 * s) * s rounds as chain's mu * mu * s * s
-            rc_dot = (c * c_dot + mu2 * s * s_dot) / rc
-            kc_val = k_val * rc  # kapC_k
-            kc_dot = k_dot * rc + k_val * rc_dot
-            m, J = P[b + C.mass], P[b + C.inertia]
-            mass += m * kc_val * kc_val + J * t_val * t_val
-            mass_rate += 2.0 * (m * kc_val * kc_dot + J * t_val * t_dot)
+            t_dot, kc_val, mass_k, mass_rate_k, b_dot = inertia(k_val, k_dot, s, c, s_dot, c_dot, t_val, l_k,
+                                                                P[b + C.mu2], P[b + C.mass], P[b + C.inertia])
+            mass += mass_k
+            mass_rate += mass_rate_k
             branch = NATURAL
             if held and i_speed >= 0 and P[b + C.draft_count] > 0:
                 branch = mode[1 + i_speed]
@@ -124,17 +118,13 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
             grade_sum += grade
             if rec.shape[0]:
                 rec[k, KAPC], rec[k, RES], rec[k, GRADE] = kc_val, force, grade
-                rec[k, KAPT_DOT], rec[k, KAPB_DOT] = t_dot, k_dot * c + k_val * c_dot
+                rec[k, KAPT_DOT], rec[k, KAPB_DOT] = t_dot, b_dot
         if rec.shape[0]:
             rec[k, KAPT], rec[k, KAPB], rec[k, PSI] = t_val, b_val, p_val
         dy[2 + k] = theta_rate
-        if k < n - 1:  # on to cart k + 1: V_{k+1} = V_k rl_k, psi_{k+1} (next_psi)
-            rl2 = next_speed2(P, b, s, c)
-            rl = math.sqrt(rl2)
-            rl_dot = (c * c_dot + P[b + C.lam2] * s * s_dot) / rl
-            beta_dot_prev = P[b + C.lam] * p_dot / rl2  # d/dt atan2(lam s, c)
-            k_val, k_dot = k_val * rl, k_dot * rl + k_val * rl_dot
-            p_val = next_psi(P, b, y, k, s, c)
+        if k < n - 1:  # on to cart k + 1: V_{k+1} = V_k rl_k, psi_{k+1}
+            k_val, k_dot, p_val, beta_dot_prev = next_link(k_val, k_dot, s, c, s_dot, c_dot, p_dot, P[b + C.lam],
+                                                           P[b + C.lam2], y[2 + k], y[3 + k])
             theta_rate_prev = theta_rate
 
     traction, acceleration, governor_rate = 0.0, z, 0.0  # kinematic: z is the ramp slope (kinematic.py)
@@ -143,9 +133,7 @@ def rhs(P, y, command, v_set, max_rate, dy, rec, mode):
             generalized_resistance = generalized_resistance + grade_sum
         traction, acceleration, governor_rate = speed_equation(P, V, v_set, z, mode, mass, 0.5 * mass_rate * V,
                                                                generalized_resistance)
-    course = y[2] + psi1  # direction of v_A1
-    dy[0] = V * math.cos(course)
-    dy[1] = V * math.sin(course)
+    dy[0], dy[1] = course(V, y[2], psi1)  # v_A1 along th_1 + psi_1
     dy[n + 2] = psi_rate
     dy[n + 3] = acceleration
     dy[n + 4] = governor_rate
@@ -175,9 +163,9 @@ def speed_equation(P, V, v_set, z, mode, mass, velocity_term, generalized_resist
     prescribed speed the force by inverse dynamics."""
     traction, acceleration, governor_rate, prescribed = traction_law(P, V, v_set, z, mode)
     if prescribed:
-        traction = mass * acceleration + generalized_resistance + velocity_term
+        traction = inverse_traction(mass, acceleration, generalized_resistance, velocity_term)
     else:
-        acceleration = (traction - generalized_resistance - velocity_term) / mass
+        acceleration = forward_acceleration(traction, generalized_resistance, velocity_term, mass)
     return traction, acceleration, governor_rate
 
 

@@ -1,0 +1,115 @@
+"""The arithmetic of the chain walk, one cart at a time, on numbers: the physics ``motion.rhs`` (one
+scheme) and ``batched.rhs_lanes`` (a batch of schemes, one per SIMD lane) both run, written once.
+
+Each piece takes numbers and returns numbers: no array goes in (numba counts an array's references
+when it is handed to an inlined function, and those calls keep LLVM from vectorising a loop over
+lanes). The callers read the packed constants and the state, call the pieces in the same order,
+and store what they return: ``rhs`` into locals, ``rhs_lanes`` into a row per quantity and a
+column per lane.
+
+The transcendental functions are bound when the pieces are made (``bind``): the C library's for
+one scheme, so that ``rhs`` stays bit for bit the readable reference's (physics/chain.py,
+dynamics.py), vmath's for a batch, whose loops then vectorise (docs/lanes.md). The arithmetic of
+every piece is the reference's, in the same order (IEEE, no fast-math).
+
+    kinematics(sincos, ...)   sin, cos of psi_k; kapT_k, th'_k, psi_k', the rates of sin and cos, kapB_k
+    grade(sincos, ...)        the cart's grade resistance on a tilted plane (laws.grade_resistance)
+    resisted(tanh, ...)       the resistance at B_k: its magnitude times tanh(s'_Bk / v0)
+    next_link(atan2, ...)     V_{k+1} / V_k and psi_{k+1} with their rates: on to the next cart
+    course(sincos, ...)       x_A1', y_A1'
+    inertia(...)              kapT_k', kapC_k, the cart's share of M and M' and kapB_k' (no
+                              transcendental function: one piece for both)
+    forward_acceleration, inverse_traction   the speed equation M V' = F_A1 - Q - R, either way
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+from ...jit import inlined, jitable
+from . import vmath
+
+#: the pieces, their math bound (``bind``)
+Walk = namedtuple("Walk", "kinematics grade resisted next_link course")
+
+
+def bind(sincos, atan2, tanh) -> Walk:
+    """The pieces with (sin x, cos x), atan2 and tanh bound into them (module docstring)."""
+
+    @inlined
+    def kinematics(k_val, p_val, p_dot, theta_rate_prev, beta_dot_prev, length, V, first):
+        """(s, c, kapT_k, th'_k, psi_k', s', c', kapB_k) of cart k from kap_k = ``k_val`` and psi_k
+        = ``p_val``: th'_k = kap_k sin(psi_k) V / l_k; psi_k' is the actuator's rate ``p_dot`` at the
+        tractor (``first``), th'_{k-1} - th'_k - beta'_{k-1} behind it."""
+        s, c = sincos(p_val)
+        t_val = k_val * s / length
+        theta_rate = t_val * V
+        p_dot = vmath.pick(first, p_dot, theta_rate_prev - theta_rate - beta_dot_prev)
+        return s, c, t_val, theta_rate, p_dot, c * p_dot, -s * p_dot, k_val * c
+
+    @inlined
+    def grade(heading, kapB, kapT, com_offset, mass, gravity_x, gravity_y):
+        """laws.grade_resistance on numbers: -m_k g_p . v_Ck / V."""
+        ey, ex = sincos(heading)
+        com_rate = com_offset * kapT
+        vx, vy = kapB * ex - com_rate * ey, kapB * ey + com_rate * ex
+        return -mass * (gravity_x * vx + gravity_y * vy)
+
+    @inlined
+    def resisted(total, axle_speed, smoothing_speed):
+        """F_Bk = (f m g + the drafts) tanh(s'_Bk / v0) (laws.resistance)."""
+        return total * tanh(axle_speed / smoothing_speed)
+
+    @inlined
+    def next_link(k_val, k_dot, s, c, s_dot, c_dot, p_dot, lam, lam2, heading, heading_next):
+        """(kap_{k+1}, kap_{k+1}', psi_{k+1}, beta_k'): V_{k+1} / V_k = sqrt(cos^2 psi_k + lam_k^2
+        sin^2 psi_k), psi_{k+1} = th_k - th_{k+1} - atan2(lam_k sin psi_k, cos psi_k)."""
+        rl2 = c * c + lam2 * s * s
+        rl = math.sqrt(rl2)
+        rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
+        return k_val * rl, k_dot * rl + k_val * rl_dot, heading - heading_next - atan2(lam * s, c), \
+            lam * p_dot / rl2
+
+    @inlined
+    def course(V, heading, psi1):
+        """(x_A1', y_A1'): v_A1 along th_1 + psi_1."""
+        s, c = sincos(heading + psi1)
+        return V * c, V * s
+
+    return Walk(kinematics, grade, resisted, next_link, course)
+
+
+@inlined
+def inertia(k_val, k_dot, s, c, s_dot, c_dot, t_val, length, mu2, mass, inertia_k):
+    """(kapT_k', kapC_k, m kapC^2 + J kapT^2, 2 (m kapC kapC' + J kapT kapT'), kapB_k') of cart k:
+    s'_Ck / V_k = sqrt(cos^2 psi_k + mu_k^2 sin^2 psi_k) and the rates of the chain's factors.
+    (``(mu2 * s) * s`` rounds as chain.py's ``mu * mu * s * s``.)"""
+    t_dot = (k_dot * s + k_val * s_dot) / length
+    rc = math.sqrt(c * c + mu2 * s * s)
+    rc_dot = (c * c_dot + mu2 * s * s_dot) / rc
+    kc_val = k_val * rc
+    kc_dot = k_dot * rc + k_val * rc_dot
+    return t_dot, kc_val, mass * kc_val * kc_val + inertia_k * t_val * t_val, \
+        2.0 * (mass * kc_val * kc_dot + inertia_k * t_val * t_dot), k_dot * c + k_val * c_dot
+
+
+@inlined
+def forward_acceleration(traction, generalized_resistance, velocity_term, mass):
+    """V' = (F_A1 - Q - R) / M: where the traction law gives the force."""
+    return (traction - generalized_resistance - velocity_term) / mass
+
+
+@inlined
+def inverse_traction(mass, acceleration, generalized_resistance, velocity_term):
+    """F_A1 = M V' + Q + R: where the law prescribes V' (inverse dynamics)."""
+    return mass * acceleration + generalized_resistance + velocity_term
+
+
+@jitable
+def libm_sincos(x):
+    """(sin x, cos x) from the C library."""
+    return math.sin(x), math.cos(x)
+
+
+LIBM = bind(libm_sincos, math.atan2, math.tanh)
+VMATH = bind(vmath.sincos, vmath.atan2, vmath.tanh)
