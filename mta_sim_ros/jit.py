@@ -49,6 +49,7 @@ UNIT = (
     "physics/kernel/relief.py",
     "physics/kernel/vmath.py",
     "physics/kernel/walk.py",
+    "physics/kernel/batched.py",
     "physics/kernel/motion.py",
     "physics/kernel/entries.py",
     "physics/kernel/inverse.py",

@@ -46,3 +46,30 @@ def column(P: np.ndarray, name: str) -> tuple[float, ...]:
 def max_rate_of(P: np.ndarray, max_rate: float | None = None) -> float:
     """The steering rate limit held as an input: ``max_rate``, or None for the train's own."""
     return float(P[H.max_rate]) if max_rate is None else float(max_rate)
+
+
+def shape_of(P: np.ndarray) -> tuple:
+    """What the schemes of one batch (batched.py) share: the length of P, the number of carts, the
+    traction law, each cart's drafts (first, count), whether a draft's speed is a switch, the
+    terrain's kind, and which traction limits are infinite (the switching functions' layout)."""
+    n = int(P[H.n])
+    drafts = tuple((int(P[HEAD_SIZE + CART_SIZE * k + C.draft_first]), int(P[HEAD_SIZE + CART_SIZE * k + C.draft_count]))
+                   for k in range(n))
+    return (len(P), n, int(P[H.law]), drafts, bool(P[H.speed_switches]), bool(P[H.slope]), bool(P[H.relief]),
+            bool(np.isinf(P[H.max_force])), bool(np.isinf(P[H.max_power])), bool(np.isinf(P[H.max_accel])))
+
+
+def stack(columns) -> np.ndarray:
+    """The packed constants of schemes of one shape (``shape_of``) side by side, a scheme a column:
+    the P of batched.rhs_lanes. A height grid is not batched (its relief is read point by point)."""
+    columns = [np.asarray(P, dtype=np.float64) for P in columns]
+    if not columns:
+        raise ValueError("a batch needs at least one scheme")
+    first = shape_of(columns[0])
+    for i, P in enumerate(columns[1:], start=1):
+        if shape_of(P) != first:
+            raise ValueError(f"scheme {i} has another shape than scheme 0 (carts, law, drafts, terrain or "
+                             f"traction limits): {shape_of(P)} != {first}")
+    if first[6]:
+        raise ValueError("a train on a height grid is not batched (its relief is read point by point)")
+    return np.ascontiguousarray(np.stack(columns, axis=1))

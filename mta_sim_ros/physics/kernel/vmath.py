@@ -5,7 +5,7 @@ Why: numba leaves ``math.sin`` and the like to the C library, one call per value
 vectorises a loop holding such a call only through a vector math library. PyPI's llvmlite has no
 SVML, and its LLVM maps glibc's libmvec for sin, cos, tan, exp, log and pow only (not atan2, not
 tanh; docs/lanes.md). So the transcendental functions a batched kernel needs are written here
-(no kernel calls them yet: issue 24), each as the
+(the batched right-hand side binds them: walk.py, batched.py), each as the
 classic algorithm of fdlibm (Sun's freely distributable libm, the source of most C libraries' own)
 or Cephes, with every branch on a value written as ``pick`` (a select, which the vectoriser turns
 into a blend) and every test of two conditions as ``&`` or ``|`` (``and`` and ``or`` branch).

@@ -1,0 +1,149 @@
+"""The right-hand side of a batch of schemes, one per SIMD lane (physics/kernel/batched.py), against
+the kernel's own ``rhs`` run scheme by scheme (which test_kernel holds to the readable reference,
+bit for bit).
+
+One source, two bindings: with the C library's math the batch gives every lane's y', record,
+traction and mass bit for bit as ``rhs`` does; with vmath (the binding a sweep uses) within a few
+ulp. Random trains of 1-5 carts with every traction law, drafts on several carts, on the level and
+on a tilted plane, with and without held branches (each lane on its own branches); and the
+compiled loop is vectorised."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import trains
+from test_kernel import LAWS
+
+from mta_sim_ros import jit
+from mta_sim_ros.physics import kernel
+from mta_sim_ros.physics.dynamics import Model
+from mta_sim_ros.physics.kernel import batched
+from mta_sim_ros.physics.kinematic import KinematicModel
+from mta_sim_ros.physics.spec import Draft
+from mta_sim_ros.physics.terrain import Plane
+
+ALL_LAWS = {**LAWS, "kinematic": None}
+
+
+def random_train(n: int, rng, traction, sloped: bool):
+    """n carts of random size; drafts on the last cart and, for n > 1, two on cart 2 (one with B)."""
+    carts = [(rng.uniform(2.0, 7.0), rng.uniform(-1.5, 2.0), rng.uniform(0.3, 2.5), rng.uniform(2e3, 2e4),
+              rng.uniform(1e4, 1e5)) for _ in range(n)]
+    tr = trains.train(carts=carts, traction=traction or trains.GOVERNOR)
+    if n > 1:
+        extra = (Draft("cart2", A=rng.uniform(20, 60), B=rng.uniform(0, 4), C=0.0, soil_factor=1.0, width=20.0,
+                       depth=rng.uniform(5, 10)), Draft("cart2", A=rng.uniform(2e3, 5e3), width=3.0))
+        tr = dataclasses.replace(tr, draft=tr.draft + extra)
+    return dataclasses.replace(tr, terrain=Plane(rng.uniform(-8, 8), rng.uniform(-6, 6))) if sloped else tr
+
+
+def batch(n: int, law: str, sloped: bool, held: bool, width: int, seed: int):
+    """(P per lane, stacked P, y, commands, v_sets, max_rates, mode) of ``width`` random schemes."""
+    rng = np.random.default_rng(seed)
+    models = []
+    for _ in range(width):
+        tr = random_train(n, rng, ALL_LAWS[law], sloped)
+        models.append(KinematicModel(tr) if law == "kinematic" else Model(tr))
+    Ps = [m.P for m in models]
+    y = np.stack([trains.random_state(m, rng, steering=0.7, slow=True) for m in models], axis=1)
+    commands, v_sets = rng.uniform(-1.0, 1.0, width), rng.uniform(-1.0, 4.0, width)
+    max_rates = np.array([kernel.max_rate_of(P) for P in Ps]) * rng.choice([1.0, 0.3], width)
+    rows = kernel.FORCE_SWITCHES + n + 2
+    if held:  # each lane on branches of its own, the state's or not
+        mode = rng.choice([kernel.LOW, kernel.HIGH], (rows, width)).astype(np.int64)
+    else:
+        mode = np.empty((0, width), dtype=np.int64)
+    return Ps, kernel.stack(Ps), np.ascontiguousarray(y), commands, v_sets, max_rates, mode
+
+
+def one_by_one(Ps, y, commands, v_sets, max_rates, mode):
+    """Each lane through the kernel's ``rhs`` (as plain Python, which test_kernel holds to the compiled
+    rhs and the reference bit for bit): (dy, rec, F_A1, M) stacked as the batch returns them."""
+    with np.errstate(divide="ignore", invalid="ignore"):  # held at V = 0 on the power limit: inf, as compiled
+        return stacked(Ps, y, commands, v_sets, max_rates, mode)
+
+
+def stacked(Ps, y, commands, v_sets, max_rates, mode):
+    dys, recs, tractions, masses = [], [], [], []
+    for j, P in enumerate(Ps):
+        n = int(P[kernel.H.n])
+        dy, rec = np.empty(y.shape[0]), np.empty((n, kernel.REC))
+        traction, mass = kernel.rhs(P, y[:, j].copy(), commands[j], v_sets[j], max_rates[j], dy, rec, mode[:, j].copy())
+        dys.append(dy)
+        recs.append(rec)
+        tractions.append(traction)
+        masses.append(mass)
+    return np.stack(dys, axis=1), np.stack(recs, axis=2), np.array(tractions), np.array(masses)
+
+
+CASES = [(n, law, sloped, held) for n in (1, 2, 3, 5) for law in ALL_LAWS for sloped in (False, True)
+         for held in (False, True)]
+
+
+def seed_of(n, law, sloped, held) -> int:
+    return 1000 * n + 10 * list(ALL_LAWS).index(law) + 2 * sloped + held
+
+
+@pytest.mark.parametrize("n, law, sloped, held", CASES)
+def test_with_the_c_library_a_batch_is_rhs_lane_by_lane_bit_for_bit(n, law, sloped, held):
+    Ps, P, y, commands, v_sets, max_rates, mode = batch(n, law, sloped, held, 9, seed=seed_of(n, law, sloped, held))
+    want = one_by_one(Ps, y, commands, v_sets, max_rates, mode)
+    got = batched.rhs_lanes_libm_of(P, y, commands, v_sets, max_rates, mode, True)
+    forces = law != "kinematic"  # the kinematic level records kapT, kapB and psi only
+    columns = slice(None) if forces else [kernel.KAPT, kernel.KAPB, kernel.PSI]
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1][:, columns], want[1][:, columns])
+    np.testing.assert_array_equal(got[2], want[2])
+    if forces:
+        np.testing.assert_array_equal(got[3], want[3])
+
+
+@pytest.mark.parametrize("n, law, sloped, held", CASES)
+def test_with_vmath_a_batch_is_within_a_few_ulp_of_rhs(n, law, sloped, held):
+    Ps, P, y, commands, v_sets, max_rates, mode = batch(n, law, sloped, held, 33, seed=7 + seed_of(n, law, sloped, held))
+    dy_want, _, traction_want, _ = one_by_one(Ps, y, commands, v_sets, max_rates, mode)
+    dy, _, traction, _ = batched.rhs_lanes_of(P, y, commands, v_sets, max_rates, mode, False)
+    # a branch held where its law's formula has no value (the power limit at V = 0) gives inf in both
+    finite = np.isfinite(dy_want)
+    np.testing.assert_array_equal(dy[~finite], dy_want[~finite])
+    dy, dy_want = np.where(finite, dy, 0.0), np.where(finite, dy_want, 0.0)
+    # each row against its own scale: y' sums terms (M V' = F - Q - R) that may nearly cancel
+    scale = np.max(np.abs(dy_want), axis=1, keepdims=True) + 1e-300
+    assert np.max(np.abs(dy - dy_want) / scale) < 1e-13
+    finite = np.isfinite(traction_want)
+    np.testing.assert_array_equal(traction[~finite], traction_want[~finite])
+    assert np.max(np.abs(traction[finite] - traction_want[finite]), initial=0.0) <= \
+        1e-13 * (np.max(np.abs(traction_want[finite]), initial=0.0) + 1.0)
+
+
+def test_the_two_lives_of_a_batch_give_the_same_bits():
+    Ps, P, y, commands, v_sets, max_rates, mode = batch(3, "governor", True, True, 5, seed=3)
+    compiled = batched.rhs_lanes_of(P, y, commands, v_sets, max_rates, mode, True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plain = batched.rhs_lanes_of.py_func(P, y, commands, v_sets, max_rates, mode, True)
+    for a, b in zip(compiled, plain):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.skipif(not jit.ENABLED, reason="reads what numba compiled")
+def test_the_batch_loop_is_vectorised_and_calls_no_c_math():
+    _, P, y, commands, v_sets, max_rates, mode = batch(3, "governor", True, True, 16, seed=5)
+    vmath_loop = jit.vector_evidence(batched.rhs_lanes_of, P, y, commands, v_sets, max_rates, mode, True)
+    libm_loop = jit.vector_evidence(batched.rhs_lanes_libm_of, P, y, commands, v_sets, max_rates, mode, True)
+    assert vmath_loop["packed"] >= 200, vmath_loop
+    assert vmath_loop["c_math_calls"] == [], vmath_loop
+    assert {"sin", "cos", "atan2"} <= set(libm_loop["c_math_calls"]), libm_loop  # the check sees calls
+
+
+def test_schemes_of_another_shape_are_not_stacked():
+    rng = np.random.default_rng(1)
+    level = Model(random_train(3, rng, trains.GOVERNOR, False)).P
+    with pytest.raises(ValueError, match="scheme 1 has another shape"):
+        kernel.stack([level, Model(random_train(2, rng, trains.GOVERNOR, False)).P])
+    with pytest.raises(ValueError, match="scheme 1 has another shape"):
+        kernel.stack([level, Model(random_train(3, rng, trains.GOVERNOR, True)).P])
+    with pytest.raises(ValueError, match="at least one"):
+        kernel.stack([])
+    assert kernel.stack([level, level]).shape == (level.shape[0], 2)
