@@ -25,6 +25,10 @@ chain for 2, 3 and 5 carts and 1 to 256 lanes, one scheme a call (today's kernel
 ways of putting the schemes across the lanes; which of them LLVM vectorises, and at what speed;
 and at one lane, called from compiled code (the node's tick as a batch of one), the vectorisable
 shape with vmath and with the C library bound, against the scalar walk.
+
+Last, the train's whole right-hand side across lanes (lanes_rhs.py): the kernel's ``motion.rhs``
+one scheme a call against ``batched.rhs_lanes`` at 1 to 256 lanes, with vmath and with the C
+library bound (the latter's y' bit for bit ``rhs``'s).
 Writes docs/benchmarks/lanes.md (and .json).
 """
 from __future__ import annotations
@@ -46,6 +50,7 @@ import numpy as np
 from mta_sim_ros.validate import COUNT, Range, number_arg, output_file, path_arg
 
 from ..common import header_lines, log, side_by_side, table, write_report
+from . import lanes_rhs
 
 HELP = "the lanes' math (vmath) against libm, numpy and gcc's libmvec: ns per value, accuracy, instructions"
 FLOOR = Path(__file__).with_name("lanes_floor.c")
@@ -187,7 +192,8 @@ def main(args) -> int:
                                              for k in ("numba + libm", "vmath lanes")}
             log(f"{name}: " + ", ".join(f"{k} {v:.2f} ns" for k, v in figures["ns_per_value"][name].items()))
     figures["shapes"] = loop_shapes(args.rounds)
-    write_report(args.out, report(args, figures) + shapes_report(figures["shapes"]))
+    figures["rhs"] = lanes_rhs.figures(args.rounds)
+    write_report(args.out, report(args, figures) + shapes_report(figures["shapes"]) + lanes_rhs.report(figures["rhs"]))
     Path(args.out).with_suffix(".json").write_text(json.dumps(figures, indent=1) + "\n")
     return 0
 

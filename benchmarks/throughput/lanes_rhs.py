@@ -1,0 +1,111 @@
+"""The train's whole right-hand side across lanes, for ``python -m benchmarks lanes``: the kernel's
+``motion.rhs`` one scheme a call against ``batched.rhs_lanes`` (vmath) and ``rhs_lanes_libm`` (the
+same source with the C library's math), on batches of random trains of 2, 3 and 5 carts with the
+governor, drafts on two carts, on the level. ns per scheme, thread CPU time, in turns."""
+from __future__ import annotations
+
+import math
+import statistics
+import time
+
+import numba
+import numpy as np
+
+from mta_sim_ros.physics import kernel
+from mta_sim_ros.physics.kernel import batched
+from mta_sim_ros.physics.kernel.motion import rhs
+from mta_sim_ros.physics.spec import Actuator, Cart, Draft, Rolling, Traction, Train
+
+from ..common import log, side_by_side, table
+
+CARTS, WIDTHS = (2, 3, 5), (1, 8, 64, 256)
+#: right-hand sides a timed call evaluates, whatever the width
+EVALUATIONS = 4096
+GOVERNOR = Traction("governor", set_speed=3.0, max_force=125000.0, max_power=250000.0, kp=60000.0, ki=30000.0)
+
+
+def random_train(n: int, rng) -> Train:
+    """n carts of random size and mass, rolling resistance on each, a draft with a speed term on
+    the last cart and one on the second."""
+    carts = tuple(Cart(f"cart{k + 1}", rng.uniform(2.0, 7.0), rng.uniform(-1.5, 2.0), rng.uniform(0.3, 2.5),
+                       rng.uniform(2e3, 2e4), rng.uniform(1e4, 1e5)) for k in range(n))
+    drafts = (Draft(carts[-1].name, A=2500.0, B=40.0, C=2.0, width=12.0, depth=1.0),)
+    if n > 2:
+        drafts += (Draft("cart2", A=rng.uniform(20, 60), B=2.8, C=0.0, soil_factor=1.0, width=20.0, depth=8.0),)
+    return Train(name="bench", carts=carts, traction=GOVERNOR, rolling=tuple(Rolling(c.name, 0.08) for c in carts),
+                 draft=drafts, actuator=Actuator(time_constant=0.2, max_rate=0.6, max_angle=math.radians(40.0)))
+
+
+def batch(n: int, width: int, seed: int = 20261206) -> dict:
+    """The arrays of ``width`` random schemes, scheme index innermost, and one scheme a row."""
+    rng = np.random.default_rng(seed)
+    P = kernel.stack([kernel.pack(random_train(n, rng)) for _ in range(width)])
+    y = np.zeros((n + 5, width))
+    y[0:2] = rng.normal(0.0, 10.0, (2, width))
+    y[2:2 + n] = rng.uniform(-math.pi, math.pi, width) + np.cumsum(rng.uniform(-0.4, 0.4, (n, width)), axis=0)
+    y[n + 2], y[n + 3], y[n + 4] = rng.uniform(-0.5, 0.5, width), rng.uniform(0.5, 4.0, width), rng.normal(0, 2e4, width)
+    inputs = (rng.uniform(-0.7, 0.7, width), rng.uniform(1.0, 4.0, width), P[kernel.H.max_rate].copy())
+    return {"lanes": (P, y, *inputs), "rows": (np.ascontiguousarray(P.T), np.ascontiguousarray(y.T), *inputs)}
+
+
+@numba.njit
+def one_scheme_a_call(P, y, commands, v_sets, max_rates, dy, times):
+    """The kernel today: ``rhs`` on each scheme's own arrays (a row each), ``times`` over."""
+    rec = np.empty((0, kernel.REC))
+    mode = kernel.no_mode()
+    for _ in range(times):
+        for j in range(P.shape[0]):
+            rhs(P[j], y[j], commands[j], v_sets[j], max_rates[j], dy[j], rec, mode)
+
+
+def across_lanes(fn):
+    @numba.njit(error_model="numpy")
+    def run(P, y, commands, v_sets, max_rates, dy, times):
+        rec = np.empty((0, kernel.REC, y.shape[1]))
+        mode = np.empty((0, y.shape[1]), dtype=np.int64)
+        work = np.empty((batched.WORK_ROWS, y.shape[1]))
+        for _ in range(times):
+            fn(P, y, commands, v_sets, max_rates, dy, rec, mode, work)
+    return run
+
+
+def figures(rounds: int) -> dict:
+    """ns per scheme of each form, per carts and width; the largest difference of vmath's y' from
+    ``rhs``'s (relative to each row's largest value) and whether the libm form's is the same bits."""
+    forms = {"rhs, one scheme a call": one_scheme_a_call, "rhs_lanes": across_lanes(batched.rhs_lanes),
+             "rhs_lanes, libm": across_lanes(batched.rhs_lanes_libm)}
+    out: dict = {}
+    for n in CARTS:
+        for width in WIDTHS:
+            arrays = batch(n, width)
+            times = max(1, EVALUATIONS // width)
+            dys = {label: np.zeros_like(arrays["rows" if label.startswith("rhs,") else "lanes"][1]) for label in forms}
+            variants = {label: (lambda f, a, d: lambda: f(*a, d, times))(
+                fn, arrays["rows" if label.startswith("rhs,") else "lanes"], dys[label]) for label, fn in forms.items()}
+            for fn in variants.values():
+                fn()
+            taken = side_by_side(variants, rounds, clock=time.thread_time)
+            want = dys["rhs, one scheme a call"].T
+            scale = np.abs(want).max(axis=1, keepdims=True) + 1e-300
+            out[f"{n} carts, {width} lane{'s' if width > 1 else ''}"] = {
+                "ns": {k: 1e9 * statistics.median(v) / (times * width) for k, v in taken.items()},
+                "vmath_max_rel": float((np.abs(dys["rhs_lanes"] - want) / scale).max()),
+                "libm_bit_identical": bool(np.array_equal(dys["rhs_lanes, libm"], want))}
+        log(f"rhs, {n} carts, {WIDTHS[-1]} lanes: " + ", ".join(
+            f"{k} {v:.1f} ns" for k, v in out[f"{n} carts, {WIDTHS[-1]} lanes"]["ns"].items()))
+    return out
+
+
+def report(figs: dict) -> list[str]:
+    labels = ["rhs, one scheme a call", "rhs_lanes", "rhs_lanes, libm"]
+    lines = ["## The train's right-hand side across lanes", "",
+             "The kernel's whole y' (`physics/kernel/batched.py`: chain walk, inertia, drafts, governor, steering "
+             "actuator) for batches of random trains with the governor and drafts on two carts, on the level: "
+             "`motion.rhs` one scheme a call from a compiled loop (what a run's stepper calls today), "
+             "`rhs_lanes` with vmath (what a sweep's batch will call), and `rhs_lanes, libm`, the same source with "
+             "the C library's math. ns per scheme, medians, thread CPU time, in turns; in brackets the speed-up "
+             f"over `rhs`. {EVALUATIONS} right-hand sides a timed call.", ""]
+    rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
+            + [f"{f['vmath_max_rel']:.1e}", "yes" if f["libm_bit_identical"] else "NO"] for key, f in figs.items()]
+    lines += table(rows, ["batch"] + labels + ["vmath: largest difference / row scale", "libm: same bits"], "lr")
+    return lines + [""]
