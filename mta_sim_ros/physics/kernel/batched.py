@@ -59,7 +59,7 @@ WORK_ROWS = 29
 
 def rhs_lanes_with(walk):
     """``rhs_lanes`` with the math of ``walk`` (walk.bind) compiled into it."""
-    kinematics, _, _, next_link, course = walk
+    kinematics, next_link, course = walk.kinematics, walk.next_link, walk.course
     walk_forces = forces_with(walk)
 
     @jitable
@@ -121,7 +121,7 @@ def start_lanes(P, y, commands, max_rates, mode, work, n):
 
 def forces_with(walk):
     """``walk_forces`` with the math of ``walk`` compiled into it."""
-    _, grade, resisted, _, _ = walk
+    grade, resisted = walk.grade, walk.resisted
 
     @jitable
     def walk_forces(P, y, n, k, b, held, sloped, i_speed, rec, mode, work):

@@ -31,7 +31,7 @@ from .vmath import pick
 from .walk import LIBM
 
 #: the walk's pieces with the C library's math (walk.py): the scalar kernel is the reference's to the bit
-libm_grade, libm_resisted = LIBM.grade, LIBM.resisted
+libm_grade, libm_resisted, libm_actuator = LIBM.grade, LIBM.resisted, LIBM.actuator
 
 
 @jitable
@@ -213,15 +213,8 @@ def actuator_release(P, psi1, command, max_rate):
 def actuator_psi(P, psi0, command, max_rate, release, T):
     """psi_1 at T s into a tick that started at psi0, the command held: the actuator's closed-form
     motion (rate-limited at +-max_rate until ``release``, ``actuator_release``; then the first-order
-    lag, exp(-t / tau) towards the clipped command)."""
-    max_angle, tau = P[H.max_angle], P[H.time_constant]
-    target = pymin(pymax(command, -max_angle), max_angle)
-    if math.isinf(release):
-        return target + (psi0 - target) * math.exp(-T / tau)
-    sign = 1.0 if target > psi0 else -1.0
-    if T <= release:
-        return psi0 + sign * max_rate * T
-    return target - sign * tau * max_rate * math.exp(-(T - release) / tau)
+    lag, exp(-t / tau) towards the clipped command): walk.py's ``actuator``."""
+    return libm_actuator(P[H.max_angle], P[H.time_constant], psi0, command, max_rate, release, T)
 
 
 @jitable

@@ -7,7 +7,7 @@ lanes). The callers read the packed constants and the state, call the pieces in 
 and store what they return: ``rhs`` into locals, ``rhs_lanes`` into a row per quantity and a
 column per lane.
 
-The transcendental functions are bound when the pieces are made (``bind``): the C library's for
+The transcendental functions (sin, cos, atan2, tanh, exp) are bound when the pieces are made (``bind``): the C library's for
 one scheme, so that ``rhs`` stays bit for bit the readable reference's (physics/chain.py,
 dynamics.py), vmath's for a batch, whose loops then vectorise (docs/lanes.md). The arithmetic of
 every piece is the reference's, in the same order (IEEE, no fast-math).
@@ -17,6 +17,7 @@ every piece is the reference's, in the same order (IEEE, no fast-math).
     resisted(tanh, ...)       the resistance at B_k: its magnitude times tanh(s'_Bk / v0)
     next_link(atan2, ...)     V_{k+1} / V_k and psi_{k+1} with their rates: on to the next cart
     course(sincos, ...)       x_A1', y_A1'
+    actuator(exp, ...)        psi_1 of the steering actuator in closed form (laws.actuator_psi)
     inertia(...)              kapT_k', kapC_k, the cart's share of M and M' and kapB_k' (no
                               transcendental function: one piece for both)
     forward_acceleration, inverse_traction   the speed equation M V' = F_A1 - Q - R, either way
@@ -28,13 +29,15 @@ from collections import namedtuple
 
 from ...jit import inlined, jitable
 from . import vmath
+from .base import pymax, pymin
+from .vmath import pick
 
 #: the pieces, their math bound (``bind``)
-Walk = namedtuple("Walk", "kinematics grade resisted next_link course")
+Walk = namedtuple("Walk", "kinematics grade resisted next_link course actuator")
 
 
-def bind(sincos, atan2, tanh) -> Walk:
-    """The pieces with (sin x, cos x), atan2 and tanh bound into them (module docstring)."""
+def bind(sincos, atan2, tanh, exp) -> Walk:
+    """The pieces with (sin x, cos x), atan2, tanh and exp bound into them (module docstring)."""
 
     @inlined
     def kinematics(k_val, p_val, p_dot, theta_rate_prev, beta_dot_prev, length, V, first):
@@ -44,7 +47,7 @@ def bind(sincos, atan2, tanh) -> Walk:
         s, c = sincos(p_val)
         t_val = k_val * s / length
         theta_rate = t_val * V
-        p_dot = vmath.pick(first, p_dot, theta_rate_prev - theta_rate - beta_dot_prev)
+        p_dot = pick(first, p_dot, theta_rate_prev - theta_rate - beta_dot_prev)
         return s, c, t_val, theta_rate, p_dot, c * p_dot, -s * p_dot, k_val * c
 
     @inlined
@@ -76,7 +79,19 @@ def bind(sincos, atan2, tanh) -> Walk:
         s, c = sincos(heading + psi1)
         return V * c, V * s
 
-    return Walk(kinematics, grade, resisted, next_link, course)
+    @inlined
+    def actuator(max_angle, time_constant, psi0, command, max_rate, release, T):
+        """laws.actuator_psi on numbers: psi_1 at T s into a tick that started at psi0 (rate-limited at
+        +-max_rate until ``release``, then the first-order lag; inf: the lag from the start). One exp,
+        its argument picked, never above 0."""
+        target = pymin(pymax(command, -max_angle), max_angle)
+        free, limited = math.isinf(release), T <= release
+        sign = pick(target > psi0, 1.0, -1.0)
+        e = exp(pick(free, -T / time_constant, pick(limited, 0.0, -(T - release) / time_constant)))
+        return pick(free, target + (psi0 - target) * e,
+                    pick(limited, psi0 + sign * max_rate * T, target - sign * time_constant * max_rate * e))
+
+    return Walk(kinematics, grade, resisted, next_link, course, actuator)
 
 
 @inlined
@@ -111,5 +126,5 @@ def libm_sincos(x):
     return math.sin(x), math.cos(x)
 
 
-LIBM = bind(libm_sincos, math.atan2, math.tanh)
-VMATH = bind(vmath.sincos, vmath.atan2, vmath.tanh)
+LIBM = bind(libm_sincos, math.atan2, math.tanh, math.exp)
+VMATH = bind(vmath.sincos, vmath.atan2, vmath.tanh, vmath.exp)
