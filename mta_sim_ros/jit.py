@@ -54,6 +54,7 @@ UNIT = (
     "physics/kernel/entries.py",
     "physics/kernel/inverse.py",
     "integrate/rk.py",
+    "integrate/rk_lanes.py",
     "run/whole.py",
     "run/offsets.py",
     "controllers/implement/loop.py",

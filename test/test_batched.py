@@ -6,7 +6,8 @@ One source, two bindings: with the C library's math the batch gives every lane's
 traction and mass bit for bit as ``rhs`` does; with vmath (the binding a sweep uses) within a few
 ulp. Random trains of 1-5 carts with every traction law, drafts on several carts, on the level and
 on a tilted plane, with and without held branches (each lane on its own branches); and the
-compiled loop is vectorised."""
+compiled loop is vectorised. The same for one Runge-Kutta step across lanes against ``rk.rk_step``,
+the steering angle from the actuator's closed form included."""
 from __future__ import annotations
 
 import dataclasses
@@ -17,6 +18,8 @@ import trains
 from test_kernel import LAWS
 
 from mta_sim_ros import jit
+from mta_sim_ros.integrate import rk, rk_lanes
+from mta_sim_ros.integrate.tableau import TABLEAUX
 from mta_sim_ros.physics import kernel
 from mta_sim_ros.physics.dynamics import Model
 from mta_sim_ros.physics.kernel import batched
@@ -147,3 +150,62 @@ def test_schemes_of_another_shape_are_not_stacked():
     with pytest.raises(ValueError, match="at least one"):
         kernel.stack([])
     assert kernel.stack([level, level]).shape == (level.shape[0], 2)
+
+
+# -- one Runge-Kutta step across lanes (integrate/rk_lanes.py) ---------------------------------------
+
+def lags(Ps, y, commands, max_rates, on: bool, T0: float):
+    """rk_step's ``lag`` per lane: the actuator's closed form from the state's psi_1 (its release
+    from ``actuator_release``: some lanes rate-limited through the step, some released in it)."""
+    lag = np.zeros((5, len(Ps)))
+    if on:
+        for j, P in enumerate(Ps):
+            psi = y[int(P[kernel.H.n]) + 2, j]
+            lag[:, j] = 1.0, psi, commands[j], kernel.actuator_release(P, psi, commands[j], max_rates[j]), T0
+    return lag
+
+
+def step_one_by_one(Ps, T, y, commands, v_sets, max_rates, h, mode, lag):
+    """Each lane through rk.rk_step (plain Python, bit for bit the compiled stepper: test_kernel)."""
+    out = np.empty_like(y)
+    for j, P in enumerate(Ps):
+        size = y.shape[0]
+        K, tmp = np.empty((T.shape[0] - 2, size)), np.empty(size)
+        rk.rk_step(kernel.model_rhs, P, T, 0.0, y[:, j].copy(), commands[j], v_sets[j], max_rates[j], h, K, tmp,
+                   out[:, j], np.empty((0, kernel.REC)), mode[:, j].copy(), lag[:, j].copy())
+    return out
+
+
+STEP_CASES = [(n, method, held, on) for n in (1, 3, 5) for method in ("euler", "heun", "kutta3", "rk4", "rk38")
+              for held, on in ((False, False), (True, True))]
+
+
+@pytest.mark.parametrize("n, method, held, on", STEP_CASES)
+def test_a_step_across_lanes_is_rk_step_lane_by_lane(n, method, held, on):
+    """With the C library's math bit for bit; with vmath within 1e-13 of each row's scale."""
+    law = "governor" if n != 3 else "prescribed_speed, accel limit"
+    Ps, P, y, commands, v_sets, max_rates, mode = batch(n, law, n == 5, held, 11, seed=50 + n)
+    if held:  # each lane on its state's branches, as a step's start holds them
+        release = lags(Ps, y, commands, max_rates, True, 0.0)[3]
+        mode = np.stack([kernel.mode_of(P_j, y[:, j].copy(), commands[j], v_sets[j], bool(np.isfinite(release[j])))
+                         for j, P_j in enumerate(Ps)], axis=1)
+    T = TABLEAUX[method].packed
+    lag = lags(Ps, y, commands, max_rates, on, 0.03)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        want = step_one_by_one(Ps, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
+    np.testing.assert_array_equal(rk_lanes.step_lanes_libm_of(P, T, y, commands, v_sets, max_rates, 0.02, mode, lag),
+                                  want)
+    got = rk_lanes.step_lanes_of(P, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
+    finite = np.isfinite(want)
+    np.testing.assert_array_equal(got[~finite], want[~finite])
+    scale = np.max(np.abs(np.where(finite, want, 0.0)), axis=1, keepdims=True) + 1e-300
+    assert np.max(np.abs(np.where(finite, got - want, 0.0)) / scale) < 1e-13
+
+
+@pytest.mark.skipif(not jit.ENABLED, reason="reads what numba compiled")
+def test_the_step_loop_is_vectorised():
+    Ps, P, y, commands, v_sets, max_rates, mode = batch(3, "governor", False, False, 16, seed=9)
+    T = TABLEAUX["rk4"].packed
+    lag = lags(Ps, y, commands, max_rates, True, 0.0)
+    seen = jit.vector_evidence(rk_lanes.step_lanes_of, P, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
+    assert seen["packed"] >= 300 and seen["c_math_calls"] == [], seen
