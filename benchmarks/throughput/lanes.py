@@ -28,7 +28,8 @@ shape with vmath and with the C library bound, against the scalar walk.
 
 Last, the train's whole right-hand side across lanes (lanes_rhs.py): the kernel's ``motion.rhs``
 one scheme a call against ``batched.rhs_lanes`` at 1 to 256 lanes, with vmath and with the C
-library bound (the latter's y' bit for bit ``rhs``'s).
+library bound (the latter's y' bit for bit ``rhs``'s); and one rk4 step, ``rk.rk_step`` against
+``rk_lanes.rk_step_lanes``.
 Writes docs/benchmarks/lanes.md (and .json).
 """
 from __future__ import annotations
@@ -193,7 +194,9 @@ def main(args) -> int:
             log(f"{name}: " + ", ".join(f"{k} {v:.2f} ns" for k, v in figures["ns_per_value"][name].items()))
     figures["shapes"] = loop_shapes(args.rounds)
     figures["rhs"] = lanes_rhs.figures(args.rounds)
-    write_report(args.out, report(args, figures) + shapes_report(figures["shapes"]) + lanes_rhs.report(figures["rhs"]))
+    figures["step"] = lanes_rhs.step_figures(args.rounds)
+    write_report(args.out, report(args, figures) + shapes_report(figures["shapes"]) + lanes_rhs.report(figures["rhs"])
+                 + lanes_rhs.step_report(figures["step"]))
     Path(args.out).with_suffix(".json").write_text(json.dumps(figures, indent=1) + "\n")
     return 0
 

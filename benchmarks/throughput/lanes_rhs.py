@@ -11,9 +11,11 @@ import time
 import numba
 import numpy as np
 
+from mta_sim_ros.integrate import rk, rk_lanes
+from mta_sim_ros.integrate.tableau import TABLEAUX
 from mta_sim_ros.physics import kernel
 from mta_sim_ros.physics.kernel import batched
-from mta_sim_ros.physics.kernel.motion import rhs
+from mta_sim_ros.physics.kernel.motion import model_rhs, rhs
 from mta_sim_ros.physics.spec import Actuator, Cart, Draft, Rolling, Traction, Train
 
 from ..common import log, side_by_side, table
@@ -69,6 +71,53 @@ def across_lanes(fn):
     return run
 
 
+@numba.njit
+def steps_one_scheme_a_call(P, T, y, commands, v_sets, max_rates, h, lag, out, times):
+    """rk.rk_step on each scheme's own arrays (the actuator in closed form), ``times`` over."""
+    size = y.shape[1]
+    K, tmp, rec, mode = np.empty((T.shape[0] - 2, size)), np.empty(size), np.empty((0, kernel.REC)), kernel.no_mode()
+    for _ in range(times):
+        for j in range(P.shape[0]):
+            rk.rk_step(model_rhs, P[j], T, 0.0, y[j], commands[j], v_sets[j], max_rates[j], h, K, tmp, out[j], rec,
+                       mode, lag[j])
+
+
+def steps_across(step):
+    @numba.njit(error_model="numpy")
+    def run(P, T, y, commands, v_sets, max_rates, h, lag, out, times):
+        K, tmp, _, rec, work, acc = rk_lanes.arrays(T, y)
+        mode = np.empty((0, y.shape[1]), dtype=np.int64)
+        for _ in range(times):
+            step(P, T, y, commands, v_sets, max_rates, h, K, tmp, out, rec, mode, lag, work, acc)
+    return run
+
+
+def step_figures(rounds: int) -> dict:
+    """ns per scheme of one rk4 step (the actuator in closed form), per carts and width."""
+    forms = {"rk_step, one scheme a call": steps_one_scheme_a_call, "rk_step_lanes": steps_across(rk_lanes.rk_step_lanes),
+             "rk_step_lanes, libm": steps_across(rk_lanes.rk_step_lanes_libm)}
+    T = TABLEAUX["rk4"].packed
+    out: dict = {}
+    for n in CARTS:
+        for width in WIDTHS:
+            arrays = batch(n, width)
+            lag = np.zeros((5, width))
+            lag[0], lag[1], lag[2], lag[3] = 1.0, arrays["lanes"][1][n + 2], arrays["lanes"][2], math.inf
+            times = max(1, EVALUATIONS // (4 * width))
+            given = {"rows": arrays["rows"] + (0.02, np.ascontiguousarray(lag.T)),
+                     "lanes": arrays["lanes"] + (0.02, lag)}
+            outs = {label: np.zeros_like(arrays["rows" if label.startswith("rk_step,") else "lanes"][1]) for label in forms}
+            variants = {label: (lambda f, a, o: lambda: f(*a[:1], T, *a[1:], o, times))(
+                fn, given["rows" if label.startswith("rk_step,") else "lanes"], outs[label]) for label, fn in forms.items()}
+            for fn in variants.values():
+                fn()
+            taken = side_by_side(variants, rounds, clock=time.thread_time)
+            out[f"{n} carts, {width} lane{'s' if width > 1 else ''}"] = {
+                "ns": {k: 1e9 * statistics.median(v) / (times * width) for k, v in taken.items()},
+                "libm_bit_identical": bool(np.array_equal(outs["rk_step_lanes, libm"], outs["rk_step, one scheme a call"].T))}
+    return out
+
+
 def figures(rounds: int) -> dict:
     """ns per scheme of each form, per carts and width; the largest difference of vmath's y' from
     ``rhs``'s (relative to each row's largest value) and whether the libm form's is the same bits."""
@@ -108,4 +157,16 @@ def report(figs: dict) -> list[str]:
     rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
             + [f"{f['vmath_max_rel']:.1e}", "yes" if f["libm_bit_identical"] else "NO"] for key, f in figs.items()]
     lines += table(rows, ["batch"] + labels + ["vmath: largest difference / row scale", "libm: same bits"], "lr")
+    return lines + [""]
+
+
+def step_report(figs: dict) -> list[str]:
+    labels = ["rk_step, one scheme a call", "rk_step_lanes", "rk_step_lanes, libm"]
+    lines = ["## One rk4 step across lanes", "",
+             "`rk.rk_step` one scheme a call (the steering angle from the actuator's closed form, as a run with kinks "
+             "split steps it) against `integrate/rk_lanes.py`'s `rk_step_lanes` with vmath and with the C library "
+             "bound; the same trains as above. ns per scheme and step (four right-hand sides), medians in turns.", ""]
+    rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
+            + ["yes" if f["libm_bit_identical"] else "NO"] for key, f in figs.items()]
+    lines += table(rows, ["batch"] + labels + ["libm: same bits"], "lr")
     return lines + [""]
