@@ -30,6 +30,16 @@ from mta_sim_ros.physics.terrain import Plane
 ALL_LAWS = {**LAWS, "kinematic": None}
 
 
+def assert_same_bits(got, want):
+    """Equal to the bit, the sign of zero included; NaN where NaN (IEEE leaves a NaN's sign to the
+    operation that made it)."""
+    got, want = np.asarray(got, dtype=np.float64), np.asarray(want, dtype=np.float64)
+    assert got.shape == want.shape
+    nan = np.isnan(want)
+    np.testing.assert_array_equal(np.isnan(got), nan)
+    np.testing.assert_array_equal(got[~nan].view(np.int64), want[~nan].view(np.int64))
+
+
 def random_train(n: int, rng, traction, sloped: bool):
     """n carts of random size; drafts on the last cart and, for n > 1, two on cart 2 (one with B)."""
     carts = [(rng.uniform(2.0, 7.0), rng.uniform(-1.5, 2.0), rng.uniform(0.3, 2.5), rng.uniform(2e3, 2e4),
@@ -96,11 +106,11 @@ def test_with_the_c_library_a_batch_is_rhs_lane_by_lane_bit_for_bit(n, law, slop
     got = batched.rhs_lanes_libm_of(P, y, commands, v_sets, max_rates, mode, True)
     forces = law != "kinematic"  # the kinematic level records kapT, kapB and psi only
     columns = slice(None) if forces else [kernel.KAPT, kernel.KAPB, kernel.PSI]
-    np.testing.assert_array_equal(got[0], want[0])
-    np.testing.assert_array_equal(got[1][:, columns], want[1][:, columns])
-    np.testing.assert_array_equal(got[2], want[2])
+    assert_same_bits(got[0], want[0])
+    assert_same_bits(got[1][:, columns], want[1][:, columns])
+    assert_same_bits(got[2], want[2])
     if forces:
-        np.testing.assert_array_equal(got[3], want[3])
+        assert_same_bits(got[3], want[3])
 
 
 @pytest.mark.parametrize("n, law, sloped, held", CASES)
@@ -127,7 +137,7 @@ def test_the_two_lives_of_a_batch_give_the_same_bits():
     with np.errstate(divide="ignore", invalid="ignore"):
         plain = batched.rhs_lanes_of.py_func(P, y, commands, v_sets, max_rates, mode, True)
     for a, b in zip(compiled, plain):
-        np.testing.assert_array_equal(a, b)
+        assert_same_bits(a, b)
 
 
 @pytest.mark.skipif(not jit.ENABLED, reason="reads what numba compiled")
@@ -150,6 +160,15 @@ def test_schemes_of_another_shape_are_not_stacked():
     with pytest.raises(ValueError, match="at least one"):
         kernel.stack([])
     assert kernel.stack([level, level]).shape == (level.shape[0], 2)
+
+
+def test_a_batch_on_a_height_grid_is_refused_by_the_kernel_too():
+    """A P not built by kernel.stack, on a height grid: refused, not run without its relief."""
+    _, P, y, commands, v_sets, max_rates, mode = batch(2, "governor", False, False, 3, seed=2)
+    P = P.copy()
+    P[kernel.H.relief] = 1.0
+    with pytest.raises(ValueError, match="height grid is not batched"):
+        batched.rhs_lanes_of(P, y, commands, v_sets, max_rates, mode, False)
 
 
 # -- one Runge-Kutta step across lanes (integrate/rk_lanes.py) ---------------------------------------
@@ -193,8 +212,7 @@ def test_a_step_across_lanes_is_rk_step_lane_by_lane(n, method, held, on):
     lag = lags(Ps, y, commands, max_rates, on, 0.03)
     with np.errstate(divide="ignore", invalid="ignore"):
         want = step_one_by_one(Ps, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
-    np.testing.assert_array_equal(rk_lanes.step_lanes_libm_of(P, T, y, commands, v_sets, max_rates, 0.02, mode, lag),
-                                  want)
+    assert_same_bits(rk_lanes.step_lanes_libm_of(P, T, y, commands, v_sets, max_rates, 0.02, mode, lag), want)
     got = rk_lanes.step_lanes_of(P, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
     finite = np.isfinite(want)
     np.testing.assert_array_equal(got[~finite], want[~finite])
@@ -209,3 +227,22 @@ def test_the_step_loop_is_vectorised():
     lag = lags(Ps, y, commands, max_rates, True, 0.0)
     seen = jit.vector_evidence(rk_lanes.step_lanes_of, P, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
     assert seen["packed"] >= 300 and seen["c_math_calls"] == [], seen
+
+
+def test_a_branch_that_is_not_taken_divides_by_nothing():
+    """The laws on numbers compute every branch and pick one: a branch not taken must not divide
+    where the law's own branch does not (compiled with Python's error model, x / 0 raises). Held on
+    the steering's rate limit with tau = 0 the rate is +-max_rate; rate-limited, the actuator's
+    closed form is the straight line; without a power limit, the traction limit is max_force."""
+    P = Model(random_train(2, np.random.default_rng(4), trains.GOVERNOR, False)).P.copy()
+    P[kernel.H.time_constant] = 0.0
+    y = np.zeros(2 + 5)
+    y[4], y[5] = 0.1, 2.0  # psi_1, V
+    mode = np.full(kernel.FORCE_SWITCHES + 2 + 2, kernel.LOW, dtype=np.int64)
+    mode[0] = kernel.HIGH
+    dy = kernel.held_rhs_of(P, y, 0.5, 2.0, 0.6, mode)
+    assert dy[4] == 0.6
+    P[kernel.H.time_constant] = 0.2
+    assert kernel.actuator_psi(P, 0.1, 0.5, 0.6, 1.0, 0.5) == 0.1 + 0.6 * 0.5
+    P[kernel.H.max_power] = np.inf
+    assert kernel.traction_limit(P, 0.0, kernel.NATURAL, kernel.HIGH) == P[kernel.H.max_force]

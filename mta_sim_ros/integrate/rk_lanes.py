@@ -4,7 +4,8 @@ no kink inside the step: the caller splits a lane's kinked step with the scalar 
 
 Arrays as in physics/kernel/batched.py, the scheme index innermost: y, tmp, out (size, L), K
 (stages, size, L), the held inputs (L,), ``lag`` (5, L): per lane (on, psi0, command, release,
-T0) as ``rk_step``'s (``on`` and T0 the same in every lane), ``work`` the right-hand side's rows.
+T0) as ``rk_step``'s (``on`` read from lane 0: on in every lane or in none), ``work`` the
+right-hand side's rows.
 
 The arithmetic is ``rk_step``'s: each stage's sum over the non-zero tableau entries left to right,
 starting from its first term, and the steering angle from the actuator's closed form (walk.py's

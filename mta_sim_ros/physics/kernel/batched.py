@@ -67,6 +67,8 @@ def rhs_lanes_with(walk):
         """y' of every lane into ``dy`` (``motion.rhs`` per lane; module docstring for the arrays)."""
         L = y.shape[1]
         n = int(P[H.n, 0])
+        if P[H.relief, 0] != 0.0:
+            raise ValueError("a train on a height grid is not batched (kernel.stack)")
         forces_on = int(P[H.law, 0]) != KINEMATIC
         sloped, held, recording = P[H.slope, 0] != 0.0, mode.shape[0] > 0, rec.shape[0] > 0
         i_speed = switch_layout(P[:, 0])[4]

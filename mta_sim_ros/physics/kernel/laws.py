@@ -49,7 +49,7 @@ def steering(max_angle, time_constant, psi1, command, max_rate, branch):
     """``steering_rate`` on numbers, every branch computed and one picked (a loop over lanes, each
     on its own branch, vectorises)."""
     target = pymin(pymax(command, -max_angle), max_angle)
-    linear = (target - psi1) / time_constant
+    linear = (target - psi1) / pick(branch == HIGH, 1.0, time_constant)  # held on the rate limit: not divided
     limited = pick(target > psi1, max_rate, -max_rate)
     return pick(branch == NATURAL, pymin(pymax(linear, -max_rate), max_rate), pick(branch == HIGH, limited, linear))
 
@@ -161,7 +161,8 @@ def traction_limit(P, V, limit_branch, floor_branch):
 def limit_of(max_force, max_power, V, limit_branch, floor_branch):
     """``traction_limit`` on numbers: max_force alone where max_power is infinite."""
     speed = pick(floor_branch == NATURAL, pymax(abs(V), 0.1), pick(floor_branch == HIGH, abs(V), 0.1))
-    per_power = max_power / pick(limit_branch == LOW, 1.0, speed)  # held on the force limit: not divided
+    # divided only where the power limit can be the answer (not held on the force limit, max_power finite)
+    per_power = max_power / pick((limit_branch == LOW) | math.isinf(max_power), 1.0, speed)
     limit = pick(limit_branch == NATURAL, pymin(max_force, per_power), pick(limit_branch == HIGH, per_power, max_force))
     return pick(math.isinf(max_power), max_force, limit)
 

@@ -87,7 +87,8 @@ def bind(sincos, atan2, tanh, exp) -> Walk:
         target = pymin(pymax(command, -max_angle), max_angle)
         free, limited = math.isinf(release), T <= release
         sign = pick(target > psi0, 1.0, -1.0)
-        e = exp(pick(free, -T / time_constant, pick(limited, 0.0, -(T - release) / time_constant)))
+        tau = pick(limited & (not free), 1.0, time_constant)  # on the rate limit: not divided
+        e = exp(pick(free, -T / tau, pick(limited, 0.0, -(T - release) / tau)))
         return pick(free, target + (psi0 - target) * e,
                     pick(limited, psi0 + sign * max_rate * T, target - sign * time_constant * max_rate * e))
 
