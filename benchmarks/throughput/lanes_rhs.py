@@ -1,7 +1,9 @@
 """The train's whole right-hand side across lanes, for ``python -m benchmarks lanes``: the kernel's
 ``motion.rhs`` one scheme a call against ``batched.rhs_lanes`` (vmath) and ``rhs_lanes_libm`` (the
 same source with the C library's math), on batches of random trains of 2, 3 and 5 carts with the
-governor, drafts on two carts, on the level. ns per scheme, thread CPU time, in turns."""
+governor, a draft on the last cart and (from 3 carts) one on the second, on the level. ns per
+scheme, thread CPU time, in turns. The scalar loop is compiled as the kernel's entries are (numba's
+Python error model: a check on each division), the lanes' loops with the numpy error model."""
 from __future__ import annotations
 
 import math
@@ -11,6 +13,7 @@ import time
 import numba
 import numpy as np
 
+from mta_sim_ros import jit
 from mta_sim_ros.integrate import rk, rk_lanes
 from mta_sim_ros.integrate.tableau import TABLEAUX
 from mta_sim_ros.physics import kernel
@@ -114,8 +117,16 @@ def step_figures(rounds: int) -> dict:
             taken = side_by_side(variants, rounds, clock=time.thread_time)
             out[f"{n} carts, {width} lane{'s' if width > 1 else ''}"] = {
                 "ns": {k: 1e9 * statistics.median(v) / (times * width) for k, v in taken.items()},
-                "libm_bit_identical": bool(np.array_equal(outs["rk_step_lanes, libm"], outs["rk_step, one scheme a call"].T))}
+                "libm_bit_identical": same_bits(outs["rk_step_lanes, libm"], outs["rk_step, one scheme a call"].T)}
     return out
+
+
+def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Equal to the bit (the sign of zero included), NaN where NaN."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    nan = np.isnan(b)
+    return bool(a.shape == b.shape and np.array_equal(np.isnan(a), nan)
+                and np.array_equal(a[~nan].view(np.int64), b[~nan].view(np.int64)))
 
 
 def figures(rounds: int) -> dict:
@@ -139,23 +150,35 @@ def figures(rounds: int) -> dict:
             out[f"{n} carts, {width} lane{'s' if width > 1 else ''}"] = {
                 "ns": {k: 1e9 * statistics.median(v) / (times * width) for k, v in taken.items()},
                 "vmath_max_rel": float((np.abs(dys["rhs_lanes"] - want) / scale).max()),
-                "libm_bit_identical": bool(np.array_equal(dys["rhs_lanes, libm"], want))}
+                "libm_bit_identical": same_bits(dys["rhs_lanes, libm"], want)}
         log(f"rhs, {n} carts, {WIDTHS[-1]} lanes: " + ", ".join(
             f"{k} {v:.1f} ns" for k, v in out[f"{n} carts, {WIDTHS[-1]} lanes"]["ns"].items()))
+    P, y, commands, v_sets, max_rates = batch(3, 16)["lanes"]
+    out["compiled"] = jit.vector_evidence(batched.rhs_lanes_of, P, y, commands, v_sets, max_rates,
+                                          np.empty((0, 16), dtype=np.int64), False)
     return out
+
+
+def figs_packed(figs: dict) -> str:
+    seen = figs["compiled"]
+    return f"{seen['packed']}" + ("" if not seen["c_math_calls"] else f" (and C calls: {seen['c_math_calls']})")
 
 
 def report(figs: dict) -> list[str]:
     labels = ["rhs, one scheme a call", "rhs_lanes", "rhs_lanes, libm"]
     lines = ["## The train's right-hand side across lanes", "",
              "The kernel's whole y' (`physics/kernel/batched.py`: chain walk, inertia, drafts, governor, steering "
-             "actuator) for batches of random trains with the governor and drafts on two carts, on the level: "
-             "`motion.rhs` one scheme a call from a compiled loop (what a run's stepper calls today), "
+             "actuator) for batches of random trains with the governor, a draft on the last cart and (from 3 carts) one on the "
+             "second, on the level: "
+             "`motion.rhs` one scheme a call from a compiled loop (what a run's stepper calls today; numba's Python error "
+             "model, as the kernel's entries), "
              "`rhs_lanes` with vmath (what a sweep's batch will call), and `rhs_lanes, libm`, the same source with "
              "the C library's math. ns per scheme, medians, thread CPU time, in turns; in brackets the speed-up "
-             f"over `rhs`. {EVALUATIONS} right-hand sides a timed call.", ""]
+             f"over `rhs`. {EVALUATIONS} right-hand sides a timed call. The compiled `rhs_lanes` holds "
+             f"{figs_packed(figs)} packed instructions and no C math call (jit.vector_evidence).", ""]
     rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
-            + [f"{f['vmath_max_rel']:.1e}", "yes" if f["libm_bit_identical"] else "NO"] for key, f in figs.items()]
+            + [f"{f['vmath_max_rel']:.1e}", "yes" if f["libm_bit_identical"] else "NO"]
+            for key, f in figs.items() if "ns" in f]
     lines += table(rows, ["batch"] + labels + ["vmath: largest difference / row scale", "libm: same bits"], "lr")
     return lines + [""]
 
@@ -165,7 +188,8 @@ def step_report(figs: dict) -> list[str]:
     lines = ["## One rk4 step across lanes", "",
              "`rk.rk_step` one scheme a call (the steering angle from the actuator's closed form, as a run with kinks "
              "split steps it) against `integrate/rk_lanes.py`'s `rk_step_lanes` with vmath and with the C library "
-             "bound; the same trains as above. ns per scheme and step (four right-hand sides), medians in turns.", ""]
+             "bound; the same trains as above, every lane's actuator on its free lag (release = inf). ns per scheme and "
+             "step (four right-hand sides), medians in turns.", ""]
     rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
             + ["yes" if f["libm_bit_identical"] else "NO"] for key, f in figs.items()]
     lines += table(rows, ["batch"] + labels + ["libm: same bits"], "lr")
