@@ -7,7 +7,8 @@ traction and mass bit for bit as ``rhs`` does; with vmath (the binding a sweep u
 ulp. Random trains of 1-5 carts with every traction law, drafts on several carts, on the level and
 on a tilted plane, with and without held branches (each lane on its own branches); and the
 compiled loop is vectorised. The same for one Runge-Kutta step across lanes against ``rk.rk_step``,
-the steering angle from the actuator's closed form included."""
+the steering angle from the actuator's closed form included, and for the switching functions
+against ``motion.switches``."""
 from __future__ import annotations
 
 import dataclasses
@@ -148,6 +149,8 @@ def test_the_batch_loop_is_vectorised_and_calls_no_c_math():
     assert vmath_loop["packed"] >= 200, vmath_loop
     assert vmath_loop["c_math_calls"] == [], vmath_loop
     assert {"sin", "cos", "atan2"} <= set(libm_loop["c_math_calls"]), libm_loop  # the check sees calls
+    switching = jit.vector_evidence(batched.switches_lanes_of, P, y, v_sets)
+    assert switching["packed"] >= 100 and switching["c_math_calls"] == [], switching
 
 
 def test_schemes_of_another_shape_are_not_stacked():
@@ -246,3 +249,16 @@ def test_a_branch_that_is_not_taken_divides_by_nothing():
     assert kernel.actuator_psi(P, 0.1, 0.5, 0.6, 1.0, 0.5) == 0.1 + 0.6 * 0.5
     P[kernel.H.max_power] = np.inf
     assert kernel.traction_limit(P, 0.0, kernel.NATURAL, kernel.HIGH) == P[kernel.H.max_force]
+
+
+@pytest.mark.parametrize("n, law, sloped", [(n, law, sloped) for n in (1, 2, 3, 5) for law in ALL_LAWS
+                                            for sloped in (False, True)])
+def test_the_switching_functions_across_lanes_are_switches_lane_by_lane(n, law, sloped):
+    Ps, P, y, commands, v_sets, _, _ = batch(n, law, sloped, False, 9, seed=300 + seed_of(n, law, sloped, False))
+    want = [kernel.switches_of(P_j, y[:, j].copy(), commands[j], v_sets[j]) for j, P_j in enumerate(Ps)]
+    g, m = batched.switches_lanes_libm_of(P, y, v_sets)
+    assert m == len(want[0])
+    assert_same_bits(g, np.stack(want, axis=1).reshape(m, len(Ps)))
+    g, _ = batched.switches_lanes_of(P, y, v_sets)
+    want = np.stack(want, axis=1).reshape(m, len(Ps))
+    assert np.all(np.abs(g - want) <= 1e-13 * (np.abs(want).max(axis=1, keepdims=True) + 1e-300))

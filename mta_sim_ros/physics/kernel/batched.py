@@ -26,6 +26,7 @@ from ...jit import jitable, lanes
 from .base import (
     CART_SIZE,
     DRAFT_SIZE,
+    FORCE_SWITCHES,
     GRADE,
     HEAD_SIZE,
     KAPB,
@@ -45,7 +46,16 @@ from .base import (
     D,
     H,
 )
-from .laws import draft_force, governor, held_abs, prescribed_accel, steering, switch_layout
+from .laws import (
+    accel_switch,
+    draft_force,
+    governor,
+    governor_switches,
+    held_abs,
+    prescribed_accel,
+    steering,
+    switch_layout,
+)
 from .vmath import pick
 from .walk import LIBM, VMATH, forward_acceleration, inertia, inverse_traction
 
@@ -199,8 +209,55 @@ def speed_lanes(P, y, v_sets, n, forces_on, sloped, mode, work, dy):
         dy[n + 3, j], dy[n + 4, j], work[TRACTION_OUT, j] = acceleration, rate, traction
 
 
+def switches_lanes_with(walk):
+    """``switches_lanes`` with the math of ``walk`` compiled into it."""
+    sincos, chain_step = walk.sincos, walk.chain_step
+
+    @jitable
+    def switches_lanes(P, y, v_sets, g, work):
+        """``motion.switches`` of every lane into the rows of g (width, L); returns how many rows."""
+        L = y.shape[1]
+        n = int(P[H.n, 0])
+        i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P[:, 0])
+        if i_sat >= 0:
+            for j in range(L):
+                saturation, limit, floor = governor_switches(P[H.kp, j], P[H.max_force, j], P[H.max_power, j],
+                                                             y[n + 3, j], v_sets[j], y[n + 4, j])
+                g[i_sat, j] = saturation
+                if i_limit >= 0:
+                    g[i_limit, j] = limit
+                if i_floor >= 0:
+                    g[i_floor, j] = floor
+        if i_accel >= 0:
+            for j in range(L):
+                g[i_accel, j] = accel_switch(P[H.response_time, j], P[H.max_accel, j], y[n + 3, j], v_sets[j])
+        m = max(i_sat, i_limit, i_floor, i_accel) + 1
+        if i_speed < 0:
+            return m
+        for j in range(L):
+            work[K_VAL, j], work[P_VAL, j] = 1.0, y[n + 2, j]
+        for k in range(n):
+            b = HEAD_SIZE + CART_SIZE * k
+            for j in range(L):
+                work[S, j], work[CO, j] = sincos(work[P_VAL, j])
+            if P[b + C.draft_count, 0] > 0:
+                for j in range(L):
+                    g[m, j] = work[K_VAL, j] * work[CO, j] * y[n + 3, j]  # s'_Bk
+                m += 1
+            if k < n - 1:
+                for j in range(L):
+                    _, k_val, p_val = chain_step(work[K_VAL, j], work[S, j], work[CO, j], P[b + C.lam, j],
+                                                 P[b + C.lam2, j], y[2 + k, j], y[3 + k, j])
+                    work[K_VAL, j], work[P_VAL, j] = k_val, p_val
+        return m
+
+    return switches_lanes
+
+
 rhs_lanes = rhs_lanes_with(VMATH)
 rhs_lanes_libm = rhs_lanes_with(LIBM)
+switches_lanes = switches_lanes_with(VMATH)
+switches_lanes_libm = switches_lanes_with(LIBM)
 
 
 
@@ -225,3 +282,19 @@ def rhs_lanes_libm_of(P, y, commands, v_sets, max_rates, mode, record):
     dy, rec, work = allocate(P, y, record)
     rhs_lanes_libm(P, y, commands, v_sets, max_rates, dy, rec, mode, work)
     return dy, rec, work[TRACTION_OUT].copy(), work[MASS_SUM].copy()
+
+
+@lanes
+def switches_lanes_of(P, y, v_sets):
+    """``switches_lanes`` (vmath) of a batch: (g rows x L, how many rows)."""
+    g = np.empty((FORCE_SWITCHES + int(P[H.n, 0]) + 1, y.shape[1]))
+    m = switches_lanes(P, y, v_sets, g, np.empty((WORK_ROWS, y.shape[1])))
+    return g[:m].copy(), m
+
+
+@lanes
+def switches_lanes_libm_of(P, y, v_sets):
+    """``switches_lanes_libm``: each lane's ``motion.switches``, to the bit."""
+    g = np.empty((FORCE_SWITCHES + int(P[H.n, 0]) + 1, y.shape[1]))
+    m = switches_lanes_libm(P, y, v_sets, g, np.empty((WORK_ROWS, y.shape[1])))
+    return g[:m].copy(), m

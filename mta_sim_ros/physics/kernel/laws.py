@@ -143,6 +143,20 @@ def governor(kp, ki, windup_time, max_force, max_power, V, v_set, z, sat_branch,
 
 
 @inlined
+def governor_switches(kp, max_force, max_power, V, v_set, z):
+    """The governor's switching functions (``motion.switches``): |u| - limit(V), max_force max(|V|, 0.1)
+    - max_power, |V| - 0.1."""
+    return abs(kp * (v_set - V) + z) - limit_of(max_force, max_power, V, NATURAL, NATURAL), \
+        max_force * pymax(abs(V), 0.1) - max_power, abs(V) - 0.1
+
+
+@inlined
+def accel_switch(response_time, max_accel, V, v_set):
+    """The prescribed speed's switching function: |v_set - V| / response_time - max_accel."""
+    return abs(v_set - V) / response_time - max_accel
+
+
+@inlined
 def clip_held(x, limit, branch):
     """x clipped to +-limit (Python's min(max(x, -limit), limit)); with a held branch, x itself (LOW)
     or the limit on x's side (HIGH)."""

@@ -50,15 +50,22 @@ from .base import (
     C,
     H,
     no_mode,
-    pymax,
     wrap_angle,
 )
-from .laws import grade_resistance, resistance, steering_rate, switch_layout, traction_law, traction_limit
+from .laws import (
+    accel_switch,
+    governor_switches,
+    grade_resistance,
+    resistance,
+    steering_rate,
+    switch_layout,
+    traction_law,
+)
 from .relief import off_relief, relief_grade, surface
 from .walk import LIBM, forward_acceleration, inertia, inverse_traction
 
 #: the walk's pieces with the C library's math (walk.py): y' is the reference's to the bit
-kinematics, next_link, course = LIBM.kinematics, LIBM.next_link, LIBM.course
+kinematics, chain_step, next_link, course = LIBM.kinematics, LIBM.chain_step, LIBM.next_link, LIBM.course
 
 
 @jitable
@@ -66,12 +73,6 @@ def next_psi(P, b, y, k, s, c):
     """psi_{k+1} = th_k - th_{k+1} - beta_k, beta_k = atan2(lam_k sin psi_k, cos psi_k): the chain's
     step from cart k (constants at P[b:]) to the next (chain.py; s, c = sin psi_k, cos psi_k)."""
     return y[2 + k] - y[3 + k] - math.atan2(P[b + C.lam] * s, c)
-
-
-@jitable
-def next_speed2(P, b, s, c):
-    """(V_{k+1} / V_k)^2 = cos^2 psi_k + lam_k^2 sin^2 psi_k: the chain's step of the hitch speed."""
-    return c * c + P[b + C.lam2] * s * s
 
 
 @jitable
@@ -318,14 +319,15 @@ def switches(P, y, command, v_set, g):
     n = int(P[H.n])
     V, z = y[n + 3], y[n + 4]
     i_sat, i_limit, i_floor, i_accel, i_speed = switch_layout(P)
-    if i_sat >= 0:
-        g[i_sat] = abs(P[H.kp] * (v_set - V) + z) - traction_limit(P, V, NATURAL, NATURAL)
-    if i_limit >= 0:
-        g[i_limit] = P[H.max_force] * pymax(abs(V), 0.1) - P[H.max_power]
-    if i_floor >= 0:
-        g[i_floor] = abs(V) - 0.1
+    if i_sat >= 0:  # the governor's (laws.governor_switches: its three, each where the layout has it)
+        saturation, limit, floor = governor_switches(P[H.kp], P[H.max_force], P[H.max_power], V, v_set, z)
+        g[i_sat] = saturation
+        if i_limit >= 0:
+            g[i_limit] = limit
+        if i_floor >= 0:
+            g[i_floor] = floor
     if i_accel >= 0:
-        g[i_accel] = abs(v_set - V) / P[H.response_time] - P[H.max_accel]
+        g[i_accel] = accel_switch(P[H.response_time], P[H.max_accel], V, v_set)
     m = max(i_sat, i_limit, i_floor, i_accel) + 1
     if i_speed >= 0:
         k_val = 1.0
@@ -337,8 +339,7 @@ def switches(P, y, command, v_set, g):
                 g[m] = k_val * c * V  # s'_Bk
                 m += 1
             if k < n - 1:
-                k_val = k_val * math.sqrt(next_speed2(P, b, s, c))
-                p_val = next_psi(P, b, y, k, s, c)
+                _, k_val, p_val = chain_step(k_val, s, c, P[b + C.lam], P[b + C.lam2], y[2 + k], y[3 + k])
     return m
 
 

@@ -15,7 +15,8 @@ every piece is the reference's, in the same order (IEEE, no fast-math).
     kinematics(sincos, ...)   sin, cos of psi_k; kapT_k, th'_k, psi_k', the rates of sin and cos, kapB_k
     grade(sincos, ...)        the cart's grade resistance on a tilted plane (laws.grade_resistance)
     resisted(tanh, ...)       the resistance at B_k: its magnitude times tanh(s'_Bk / v0)
-    next_link(atan2, ...)     V_{k+1} / V_k and psi_{k+1} with their rates: on to the next cart
+    chain_step(atan2, ...)    V_{k+1} / V_k and psi_{k+1}: on to the next cart (``motion.switches``)
+    next_link(atan2, ...)     the same with their rates (``motion.rhs``)
     course(sincos, ...)       x_A1', y_A1'
     actuator(exp, ...)        psi_1 of the steering actuator in closed form (laws.actuator_psi)
     inertia(...)              kapT_k', kapC_k, the cart's share of M and M' and kapB_k' (no
@@ -33,7 +34,7 @@ from .base import pymax, pymin
 from .vmath import pick
 
 #: the pieces, their math bound (``bind``)
-Walk = namedtuple("Walk", "kinematics grade resisted next_link course actuator")
+Walk = namedtuple("Walk", "sincos kinematics grade resisted chain_step next_link course actuator")
 
 
 def bind(sincos, atan2, tanh, exp) -> Walk:
@@ -64,14 +65,19 @@ def bind(sincos, atan2, tanh, exp) -> Walk:
         return total * tanh(axle_speed / smoothing_speed)
 
     @inlined
-    def next_link(k_val, k_dot, s, c, s_dot, c_dot, p_dot, lam, lam2, heading, heading_next):
-        """(kap_{k+1}, kap_{k+1}', psi_{k+1}, beta_k'): V_{k+1} / V_k = sqrt(cos^2 psi_k + lam_k^2
+    def chain_step(k_val, s, c, lam, lam2, heading, heading_next):
+        """((V_{k+1} / V_k)^2, kap_{k+1}, psi_{k+1}): V_{k+1} / V_k = sqrt(cos^2 psi_k + lam_k^2
         sin^2 psi_k), psi_{k+1} = th_k - th_{k+1} - atan2(lam_k sin psi_k, cos psi_k)."""
         rl2 = c * c + lam2 * s * s
+        return rl2, k_val * math.sqrt(rl2), heading - heading_next - atan2(lam * s, c)
+
+    @inlined
+    def next_link(k_val, k_dot, s, c, s_dot, c_dot, p_dot, lam, lam2, heading, heading_next):
+        """(kap_{k+1}, kap_{k+1}', psi_{k+1}, beta_k'): ``chain_step`` and the rates of its factors."""
+        rl2, k_next, p_next = chain_step(k_val, s, c, lam, lam2, heading, heading_next)
         rl = math.sqrt(rl2)
         rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
-        return k_val * rl, k_dot * rl + k_val * rl_dot, heading - heading_next - atan2(lam * s, c), \
-            lam * p_dot / rl2
+        return k_next, k_dot * rl + k_val * rl_dot, p_next, lam * p_dot / rl2
 
     @inlined
     def course(V, heading, psi1):
@@ -92,7 +98,7 @@ def bind(sincos, atan2, tanh, exp) -> Walk:
         return pick(free, target + (psi0 - target) * e,
                     pick(limited, psi0 + sign * max_rate * T, target - sign * time_constant * max_rate * e))
 
-    return Walk(kinematics, grade, resisted, next_link, course, actuator)
+    return Walk(sincos, kinematics, grade, resisted, chain_step, next_link, course, actuator)
 
 
 @inlined
