@@ -246,7 +246,7 @@ def switches_lanes_with(walk):
                 m += 1
             if k < n - 1:
                 for j in range(L):
-                    _, k_val, p_val = chain_step(work[K_VAL, j], work[S, j], work[CO, j], P[b + C.lam, j],
+                    _, _, k_val, p_val = chain_step(work[K_VAL, j], work[S, j], work[CO, j], P[b + C.lam, j],
                                                  P[b + C.lam2, j], y[2 + k, j], y[3 + k, j])
                     work[K_VAL, j], work[P_VAL, j] = k_val, p_val
         return m

@@ -339,7 +339,7 @@ def switches(P, y, command, v_set, g):
                 g[m] = k_val * c * V  # s'_Bk
                 m += 1
             if k < n - 1:
-                _, k_val, p_val = chain_step(k_val, s, c, P[b + C.lam], P[b + C.lam2], y[2 + k], y[3 + k])
+                _, _, k_val, p_val = chain_step(k_val, s, c, P[b + C.lam], P[b + C.lam2], y[2 + k], y[3 + k])
     return m
 
 

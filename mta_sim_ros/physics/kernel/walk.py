@@ -66,16 +66,16 @@ def bind(sincos, atan2, tanh, exp) -> Walk:
 
     @inlined
     def chain_step(k_val, s, c, lam, lam2, heading, heading_next):
-        """((V_{k+1} / V_k)^2, kap_{k+1}, psi_{k+1}): V_{k+1} / V_k = sqrt(cos^2 psi_k + lam_k^2
-        sin^2 psi_k), psi_{k+1} = th_k - th_{k+1} - atan2(lam_k sin psi_k, cos psi_k)."""
+        """((V_{k+1} / V_k)^2, V_{k+1} / V_k, kap_{k+1}, psi_{k+1}): V_{k+1} / V_k = sqrt(cos^2 psi_k
+        + lam_k^2 sin^2 psi_k), psi_{k+1} = th_k - th_{k+1} - atan2(lam_k sin psi_k, cos psi_k)."""
         rl2 = c * c + lam2 * s * s
-        return rl2, k_val * math.sqrt(rl2), heading - heading_next - atan2(lam * s, c)
+        rl = math.sqrt(rl2)
+        return rl2, rl, k_val * rl, heading - heading_next - atan2(lam * s, c)
 
     @inlined
     def next_link(k_val, k_dot, s, c, s_dot, c_dot, p_dot, lam, lam2, heading, heading_next):
         """(kap_{k+1}, kap_{k+1}', psi_{k+1}, beta_k'): ``chain_step`` and the rates of its factors."""
-        rl2, k_next, p_next = chain_step(k_val, s, c, lam, lam2, heading, heading_next)
-        rl = math.sqrt(rl2)
+        rl2, rl, k_next, p_next = chain_step(k_val, s, c, lam, lam2, heading, heading_next)
         rl_dot = (c * c_dot + lam2 * s * s_dot) / rl
         return k_next, k_dot * rl + k_val * rl_dot, p_next, lam * p_dot / rl2
 
