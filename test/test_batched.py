@@ -31,6 +31,18 @@ from mta_sim_ros.physics.terrain import Plane
 ALL_LAWS = {**LAWS, "kinematic": None}
 
 
+def least_packed() -> dict:
+    """The fewest packed instructions each compiled batch loop must hold (3 carts). Measured on
+    2026-12-06: LLVM 22 (PyPI's llvmlite) 389 in rhs_lanes, 455 in an rk4 step, 158 in the switching
+    functions; LLVM 14 (Ubuntu 24.04's numba 0.59) 77, 178 and 100: its vectoriser cannot prove
+    the rows of the batch's arrays apart and leaves more of the loops scalar (docs/lanes.md)."""
+    import llvmlite.binding
+
+    if llvmlite.binding.llvm_version_info[0] >= 15:
+        return {"rhs": 200, "step": 300, "switches": 100}
+    return {"rhs": 50, "step": 120, "switches": 60}
+
+
 def assert_same_bits(got, want):
     """Equal to the bit, the sign of zero included; NaN where NaN (IEEE leaves a NaN's sign to the
     operation that made it)."""
@@ -146,11 +158,11 @@ def test_the_batch_loop_is_vectorised_and_calls_no_c_math():
     _, P, y, commands, v_sets, max_rates, mode = batch(3, "governor", True, True, 16, seed=5)
     vmath_loop = jit.vector_evidence(batched.rhs_lanes_of, P, y, commands, v_sets, max_rates, mode, True)
     libm_loop = jit.vector_evidence(batched.rhs_lanes_libm_of, P, y, commands, v_sets, max_rates, mode, True)
-    assert vmath_loop["packed"] >= 200, vmath_loop
+    assert vmath_loop["packed"] >= least_packed()["rhs"], vmath_loop
     assert vmath_loop["c_math_calls"] == [], vmath_loop
     assert {"sin", "cos", "atan2"} <= set(libm_loop["c_math_calls"]), libm_loop  # the check sees calls
     switching = jit.vector_evidence(batched.switches_lanes_of, P, y, v_sets)
-    assert switching["packed"] >= 100 and switching["c_math_calls"] == [], switching
+    assert switching["packed"] >= least_packed()["switches"] and switching["c_math_calls"] == [], switching
 
 
 def test_schemes_of_another_shape_are_not_stacked():
@@ -229,7 +241,7 @@ def test_the_step_loop_is_vectorised():
     T = TABLEAUX["rk4"].packed
     lag = lags(Ps, y, commands, max_rates, True, 0.0)
     seen = jit.vector_evidence(rk_lanes.step_lanes_of, P, T, y, commands, v_sets, max_rates, 0.02, mode, lag)
-    assert seen["packed"] >= 300 and seen["c_math_calls"] == [], seen
+    assert seen["packed"] >= least_packed()["step"] and seen["c_math_calls"] == [], seen
 
 
 def test_a_branch_that_is_not_taken_divides_by_nothing():
