@@ -51,7 +51,6 @@ import numpy as np
 from mta_sim_ros.validate import COUNT, Range, number_arg, output_file, path_arg
 
 from ..common import header_lines, log, side_by_side, table, write_report
-from . import lanes_rhs
 
 HELP = "the lanes' math (vmath) against libm, numpy and gcc's libmvec: ns per value, accuracy, instructions"
 FLOOR = Path(__file__).with_name("lanes_floor.c")
@@ -192,6 +191,8 @@ def main(args) -> int:
             figures["instructions"][name] = {k: instructions(name, contenders[k][name], inputs[name])
                                              for k in ("numba + libm", "vmath lanes")}
             log(f"{name}: " + ", ".join(f"{k} {v:.2f} ns" for k, v in figures["ns_per_value"][name].items()))
+    from . import lanes_rhs  # imports numba: here, not when python -m benchmarks lists the benchmarks
+
     figures["shapes"] = loop_shapes(args.rounds)
     figures["rhs"] = lanes_rhs.figures(args.rounds)
     figures["step"] = lanes_rhs.step_figures(args.rounds)
