@@ -144,6 +144,7 @@ def test_with_vmath_a_batch_is_within_a_few_ulp_of_rhs(n, law, sloped, held):
         1e-13 * (np.max(np.abs(traction_want[finite]), initial=0.0) + 1.0)
 
 
+@pytest.mark.skipif(not jit.ENABLED, reason="without numba both lives are the plain function")
 def test_the_two_lives_of_a_batch_give_the_same_bits():
     Ps, P, y, commands, v_sets, max_rates, mode = batch(3, "governor", True, True, 5, seed=3)
     compiled = batched.rhs_lanes_of(P, y, commands, v_sets, max_rates, mode, True)

@@ -164,6 +164,15 @@ def figs_packed(figs: dict) -> str:
     return f"{seen['packed']}" + ("" if not seen["c_math_calls"] else f" (and C calls: {seen['c_math_calls']})")
 
 
+def speed_cells(ns: dict, labels: list[str]) -> list[str]:
+    """Each form's ns and, in brackets, its speed-up over the first label's."""
+    return [f"{ns[k]:.1f} ({ns[labels[0]] / ns[k]:.2f}x)" for k in labels]
+
+
+def yes_no(same: bool) -> str:
+    return "yes" if same else "NO"
+
+
 def report(figs: dict) -> list[str]:
     labels = ["rhs, one scheme a call", "rhs_lanes", "rhs_lanes, libm"]
     lines = ["## The train's right-hand side across lanes", "",
@@ -176,8 +185,7 @@ def report(figs: dict) -> list[str]:
              "the C library's math. ns per scheme, medians, thread CPU time, in turns; in brackets the speed-up "
              f"over `rhs`. {EVALUATIONS} right-hand sides a timed call. The compiled `rhs_lanes` holds "
              f"{figs_packed(figs)} packed instructions and no C math call (jit.vector_evidence).", ""]
-    rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
-            + [f"{f['vmath_max_rel']:.1e}", "yes" if f["libm_bit_identical"] else "NO"]
+    rows = [[key] + speed_cells(f["ns"], labels) + [f"{f['vmath_max_rel']:.1e}", yes_no(f["libm_bit_identical"])]
             for key, f in figs.items() if "ns" in f]
     lines += table(rows, ["batch"] + labels + ["vmath: largest difference / row scale", "libm: same bits"], "lr")
     return lines + [""]
@@ -190,7 +198,6 @@ def step_report(figs: dict) -> list[str]:
              "split steps it) against `integrate/rk_lanes.py`'s `rk_step_lanes` with vmath and with the C library "
              "bound; the same trains as above, every lane's actuator on its free lag (release = inf). ns per scheme and "
              "step (four right-hand sides), medians in turns.", ""]
-    rows = [[key] + [f"{f['ns'][k]:.1f} ({f['ns'][labels[0]] / f['ns'][k]:.2f}x)" for k in labels]
-            + ["yes" if f["libm_bit_identical"] else "NO"] for key, f in figs.items()]
+    rows = [[key] + speed_cells(f["ns"], labels) + [yes_no(f["libm_bit_identical"])] for key, f in figs.items()]
     lines += table(rows, ["batch"] + labels + ["libm: same bits"], "lr")
     return lines + [""]

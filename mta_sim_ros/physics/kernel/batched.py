@@ -64,7 +64,7 @@ from .walk import LIBM, VMATH, forward_acceleration, inertia, inverse_traction
 #: traction law's held branches (laws.switch_layout's first four)
 (K_VAL, K_DOT, P_VAL, P_DOT, TR_PREV, BD_PREV, MASS_SUM, RATE_SUM, RES_SUM, GRADE_SUM, PSI_RATE,
  S, CO, S_DOT, C_DOT, T_VAL, THETA_RATE, B_VAL, T_DOT, KC_VAL, B_DOT, GRADE_K, TOTAL, BRANCH, TRACTION_OUT, B_SAT, B_LIMIT, B_FLOOR, B_ACCEL) = range(29)
-WORK_ROWS = 29
+WORK_ROWS = B_ACCEL + 1
 
 
 def rhs_lanes_with(walk):
