@@ -58,7 +58,6 @@ import numpy as np
 
 from ..compat import trapezoid
 from ..integrate import IntegrationError
-from ..integrate.steppers import FixedStep
 from ..physics import kernel
 from ..physics.outline import box_of, cart_widths
 from ..physics.guards import ModelValidityError, check_state
@@ -111,13 +110,17 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
     trace_of = whole.trace_of if sim.compiled else whole.trace_of.py_func
     run = whole.run if sim.compiled else whole.run.py_func
     trace[0] = trace_of(P_out, y, float(sim.command), float(law_input), sim.max_rate)
-    stepper: FixedStep = sim.stepper
-    done = 0
-    while done < ticks:
-        y, done, nfev, kinks = run(model.P, P_out, stepper.tableau.packed, y, commands, v_sets, max_rates, sim.tick,
-                                   stepper.step, stepper.split_kinks, done, trace)
-        stepper.nfev += nfev
-        stepper.kinks += kinks
+    return (sim, trace, commands) + continue_run(sim, trace, commands, v_sets, max_rates, y, 0, run)
+
+
+def continue_run(sim: Simulation, trace, commands, v_sets, max_rates, y, done: int, run=None) -> tuple:
+    """A run on from tick ``done`` at state y (0 at the start; or where a kernel call stopped it,
+    whole_lanes too), ``whole.run`` called until the last tick or the guard that stops it: a state
+    the kernel's fast guard is not sure of is decided by guards.check_state. Returns (ticks run,
+    the error that stopped it or None)."""
+    model, stepper = sim.model, sim.stepper
+    run = run or whole.run
+    while True:
         sim.y, sim.ticks = y, done
         if done and not kernel.clear(model.P, y):
             try:
@@ -125,8 +128,13 @@ def run_trace(scene, **options) -> tuple[Simulation, np.ndarray, np.ndarray, int
             except ModelValidityError as err:  # the failing tick is not part of the run (as in run_scene)
                 trace[done] = np.nan
                 sim.ticks = done - 1
-                return sim, trace, commands, done - 1, err
-    return sim, trace, commands, done, None
+                return done - 1, err
+        if done >= commands.shape[0]:
+            return done, None
+        y, done, nfev, kinks = run(model.P, model.P_outputs, stepper.tableau.packed, y, commands, v_sets, max_rates,
+                                   sim.tick, stepper.step, stepper.split_kinks, done, trace)
+        stepper.nfev += nfev
+        stepper.kinks += kinks
 
 
 def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Exception | None]:
