@@ -22,6 +22,7 @@ from collections import namedtuple
 import numpy as np
 
 from ...jit import jitable
+from .vmath import pick
 
 #: km/h per m/s (the ASABE draft law takes the speed in km/h)
 MS_TO_KMH = 3.6
@@ -128,9 +129,7 @@ TWO_PI = 2.0 * math.pi
 @jitable
 def wrap_angle(a):
     """a wrapped to [-pi, pi] (geometry.wrap_angle; exact inside the interval)."""
-    if -math.pi <= a <= math.pi:
-        return a
-    return a - TWO_PI * math.floor(a / TWO_PI + 0.5)
+    return pick((a >= -math.pi) & (a <= math.pi), a, a - TWO_PI * math.floor(a / TWO_PI + 0.5))  # no branch
 
 
 @jitable

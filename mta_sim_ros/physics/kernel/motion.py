@@ -50,6 +50,7 @@ from .base import (
     C,
     H,
     no_mode,
+    pymin,
     wrap_angle,
 )
 from .laws import (
@@ -62,10 +63,20 @@ from .laws import (
     traction_law,
 )
 from .relief import off_relief, relief_grade, surface
-from .walk import LIBM, forward_acceleration, inertia, inverse_traction
+from .walk import (
+    LIBM,
+    accelerations,
+    forward_acceleration,
+    hitch_margin,
+    in_plane,
+    inertia,
+    inverse_traction,
+    towed_pull,
+)
 
 #: the walk's pieces with the C library's math (walk.py): y' is the reference's to the bit
 kinematics, chain_step, next_link, course = LIBM.kinematics, LIBM.chain_step, LIBM.next_link, LIBM.course
+pose, tractor_forces = LIBM.pose, LIBM.tractor_forces
 
 
 @jitable
@@ -181,7 +192,7 @@ def margin(P, y):
         b = HEAD_SIZE + CART_SIZE * k
         p_val = next_psi(P, b, y, k, math.sin(p_val), math.cos(p_val))  # psi_{k+1}
         phi = wrap_angle(y[2 + k] - y[3 + k])
-        m = min(P[b + CART_SIZE + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(p_val))
+        m = hitch_margin(P[b + CART_SIZE + C.max_hitch], phi, p_val)
         if m < best:
             best, where = m, k + 1
     return best, where
@@ -215,12 +226,9 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
     for k in range(n):
         b = HEAD_SIZE + CART_SIZE * k
         th = y[2 + k]
-        ex, ey = math.cos(th), math.sin(th)
         cart[k, AX], cart[k, AY] = ax, ay
-        bx, by = ax - P[b + C.length] * ex, ay - P[b + C.length] * ey
-        cart[k, BX], cart[k, BY] = bx, by
-        cart[k, CX], cart[k, CY] = bx + P[b + C.com_offset] * ex, by + P[b + C.com_offset] * ey
-        ax, ay = bx - P[b + C.hitch_offset] * ex, by - P[b + C.hitch_offset] * ey
+        _, _, cart[k, BX], cart[k, BY], cart[k, CX], cart[k, CY], ax, ay = pose(
+            th, ax, ay, P[b + C.length], P[b + C.com_offset], P[b + C.hitch_offset])
         cart[k, VC], cart[k, VB], cart[k, VT] = cart[k, KAPC] * V, cart[k, KAPB] * V, cart[k, KAPT] * V
         cart[k, PULL] = cart[k, LAT] = math.nan  # not computed here (drawbar_pulls)
         res_power += cart[k, RES] * cart[k, VB]
@@ -228,9 +236,7 @@ def outputs(P, y, command, v_set, max_rate, cart, sc, dy):
         if k:
             phi = wrap_angle(y[1 + k] - th)
             cart[k, PHI] = phi
-            m = min(P[b + C.max_hitch] - abs(phi), 0.5 * math.pi - abs(cart[k, PSI]))
-            if m < best:
-                best = m
+            best = pymin(best, hitch_margin(P[b + C.max_hitch], phi, cart[k, PSI]))
         else:
             cart[k, PHI] = 0.0
     sc[REAR_X], sc[REAR_Y] = ax, ay
@@ -274,36 +280,23 @@ def drawbar_pulls(P, y, acceleration, cart, sc):
         b = HEAD_SIZE + CART_SIZE * k
         th = y[2 + k]
         ex, ey = math.cos(th), math.sin(th)
-        nx, ny = -ey, ex
         com = P[b + C.com_offset]
-        m = P[b + C.mass]
-        rate = cart[k, VT]
-        rate_dot = cart[k, KAPT_DOT] * V + cart[k, KAPT] * acceleration
-        speed_dot = cart[k, KAPB_DOT] * V + cart[k, KAPB] * acceleration
-        a_e = speed_dot - com * rate * rate
-        a_n = cart[k, VB] * rate + com * rate_dot
+        rate_dot, a_e, a_n = accelerations(cart[k, KAPT_DOT], cart[k, KAPT], cart[k, KAPB_DOT], cart[k, KAPB], V,
+                                           acceleration, com, cart[k, VB], cart[k, VT])
         if sloped:  # gravity in the plane at C_k: as if the cart accelerated by -g_p
-            a_e -= P[H.gravity_x] * ex + P[H.gravity_y] * ey
-            a_n -= P[H.gravity_x] * nx + P[H.gravity_y] * ny
+            a_e, a_n = in_plane(a_e, a_n, ex, ey, P[H.gravity_x], P[H.gravity_y])
         elif relief:  # on a height grid the horizontal force of gravity's potential at C_k: -m g grad z
             _, zx, zy = surface(P, int(P[H.relief]), cart[k, CX], cart[k, CY])
             a_e += P[H.gravity] * (zx * ex + zy * ey)
-            a_n += P[H.gravity] * (zx * nx + zy * ny)
-        behind_n = hx * nx + hy * ny  # H_{k+1} . n_k
+            a_n += P[H.gravity] * (zx * -ey + zy * ex)
         if k == 0:
-            r1 = m * a_n + behind_n
-            r2 = P[b + C.inertia] * rate_dot - (P[b + C.hitch_offset] + com) * behind_n
-            across = (com * r1 + r2) / P[b + C.length]
-            psi = y[n + 2]
-            cart[0, LAT] = r1 - across
-            sc[FRONT_LAT] = (across - sc[TRACTION] * math.sin(psi)) / math.cos(psi)
-            cart[0, PULL] = hx * ex + hy * ey  # H_2 . e_1 (0 for a lone tractor)
+            cart[0, LAT], sc[FRONT_LAT], cart[0, PULL] = tractor_forces(
+                hx, hy, ex, ey, P[b + C.mass], a_n, P[b + C.inertia], rate_dot, P[b + C.hitch_offset], com,
+                P[b + C.length], sc[TRACTION], y[n + 2])
             break
-        h_e = hx * ex + hy * ey + cart[k, RES] + m * a_e
-        h_n = (P[b + C.inertia] * rate_dot + com * m * a_n - P[b + C.hitch_offset] * behind_n) / P[b + C.length]
-        cart[k, PULL] = h_e
-        cart[k, LAT] = m * a_n - h_n + behind_n
-        hx, hy = h_e * ex + h_n * nx, h_e * ey + h_n * ny
+        cart[k, PULL], cart[k, LAT], hx, hy = towed_pull(hx, hy, ex, ey, cart[k, RES], P[b + C.mass], a_e, a_n,
+                                                         P[b + C.inertia], rate_dot, com, P[b + C.hitch_offset],
+                                                         P[b + C.length])
 
 
 @jitable

@@ -34,7 +34,7 @@ from .base import pymax, pymin
 from .vmath import pick
 
 #: the pieces, their math bound (``bind``)
-Walk = namedtuple("Walk", "sincos kinematics grade resisted chain_step next_link course actuator")
+Walk = namedtuple("Walk", "sincos kinematics grade resisted chain_step next_link course actuator pose tractor_forces")
 
 
 def bind(sincos, atan2, tanh, exp) -> Walk:
@@ -98,7 +98,32 @@ def bind(sincos, atan2, tanh, exp) -> Walk:
         return pick(free, target + (psi0 - target) * e,
                     pick(limited, psi0 + sign * max_rate * T, target - sign * time_constant * max_rate * e))
 
-    return Walk(sincos, kinematics, grade, resisted, chain_step, next_link, course, actuator)
+    return Walk(sincos, kinematics, grade, resisted, chain_step, next_link, course, actuator, *frame_pieces(sincos))
+
+
+def frame_pieces(sincos):
+    """``pose`` and ``tractor_forces`` with (sin x, cos x) bound into them (``bind``)."""
+
+    @inlined
+    def pose(heading, ax, ay, length, com_offset, hitch_offset):
+        """(e_k = (cos th_k, sin th_k), B_k, C_k, A_{k+1}) of cart k from its hitch A_k (``outputs``)."""
+        ey, ex = sincos(heading)
+        bx, by = ax - length * ex, ay - length * ey
+        return (ex, ey, bx, by, bx + com_offset * ex, by + com_offset * ey, bx - hitch_offset * ex,
+                by - hitch_offset * ey)
+
+    @inlined
+    def tractor_forces(hx, hy, ex, ey, mass, a_n, inertia_k, rate_dot, hitch_offset, com, length, traction, psi):
+        """(N_1, the front axle's lateral force F_f, H_2 . e_1) of the tractor (``drawbar_pulls``): S + N_1
+        = R1, (l_1 - c_1) S - c_1 N_1 = R2, S = (c_1 R1 + R2) / l_1 = F sin(psi_1) + F_f cos(psi_1)."""
+        behind_n = hx * -ey + hy * ex  # H_2 . n_1
+        r1 = mass * a_n + behind_n
+        r2 = inertia_k * rate_dot - (hitch_offset + com) * behind_n
+        across = (com * r1 + r2) / length
+        s, c = sincos(psi)
+        return r1 - across, (across - traction * s) / c, hx * ex + hy * ey
+
+    return pose, tractor_forces
 
 
 @inlined
@@ -125,6 +150,40 @@ def forward_acceleration(traction, generalized_resistance, velocity_term, mass):
 def inverse_traction(mass, acceleration, generalized_resistance, velocity_term):
     """F_A1 = M V' + Q + R: where the law prescribes V' (inverse dynamics)."""
     return mass * acceleration + generalized_resistance + velocity_term
+
+
+@inlined
+def accelerations(kapT_dot, kapT, kapB_dot, kapB, V, acceleration, com, vb, vt):
+    """(th''_k, a_e, a_n): the yaw acceleration of cart k and its centre of mass's acceleration along
+    and across e_k (``drawbar_pulls``): d(s'_Bk)/dt - c_k th'_k^2 and s'_Bk th'_k + c_k th''_k, from the
+    chain's factors and rates (kapT', kapT, kapB', kapB), V, V', s'_Bk = vb and th'_k = vt."""
+    rate_dot = kapT_dot * V + kapT * acceleration
+    speed_dot = kapB_dot * V + kapB * acceleration
+    return rate_dot, speed_dot - com * vt * vt, vb * vt + com * rate_dot
+
+
+@inlined
+def in_plane(a_e, a_n, ex, ey, gravity_x, gravity_y):
+    """(a_e, a_n) on a tilted plane: gravity's component in the plane at C_k, as if the cart
+    accelerated by -g_p."""
+    return a_e - (gravity_x * ex + gravity_y * ey), a_n - (gravity_x * -ey + gravity_y * ex)
+
+
+@inlined
+def towed_pull(hx, hy, ex, ey, resistance, mass, a_e, a_n, inertia_k, rate_dot, com, hitch_offset, length):
+    """(H_k . e_k, N_k, H_k) of towed cart k from the force H_{k+1} = (hx, hy) of the cart behind
+    (``drawbar_pulls``: Newton along e_k, Euler about C_k, Newton along n_k)."""
+    nx, ny = -ey, ex
+    behind_n = hx * nx + hy * ny  # H_{k+1} . n_k
+    h_e = hx * ex + hy * ey + resistance + mass * a_e
+    h_n = (inertia_k * rate_dot + com * mass * a_n - hitch_offset * behind_n) / length
+    return h_e, mass * a_n - h_n + behind_n, h_e * ex + h_n * nx, h_e * ey + h_n * ny
+
+
+@inlined
+def hitch_margin(max_hitch, phi, psi):
+    """min(max_hitch - |phi_k|, pi/2 - |psi_k|): how far hitch k is from its jackknife limits."""
+    return pymin(max_hitch - abs(phi), 0.5 * math.pi - abs(psi))
 
 
 @jitable
