@@ -56,6 +56,7 @@ UNIT = (
     "integrate/rk.py",
     "integrate/rk_lanes.py",
     "run/whole.py",
+    "run/trace_lanes.py",
     "run/whole_lanes.py",
     "run/offsets.py",
     "controllers/implement/loop.py",

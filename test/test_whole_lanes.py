@@ -18,8 +18,9 @@ import trains
 from test_batched import ALL_LAWS, assert_same_bits, random_train
 
 from mta_sim_ros.physics.spec import Table
-from mta_sim_ros.run.batch import metrics, run_trace
-from mta_sim_ros.run.lanes_batch import lane_key, run_traces
+from mta_sim_ros.run import lanes_batch, whole
+from mta_sim_ros.run.batch import metrics, run_metrics, run_trace
+from mta_sim_ros.run.lanes_batch import REFUSALS, lane_key, run_metrics_many, run_traces, settle_many
 
 
 def random_scenes(n: int, law: str, count: int, seed: int, reverse: bool, step: float = 0.05):
@@ -104,3 +105,74 @@ def test_an_unknown_math_is_refused():
 
 def test_a_batch_of_none_is_none():
     assert run_traces([]) == []
+
+
+def tolerance_scenes(count: int, seed: int):
+    """Scenes without a step (the step is searched for their tolerance, accuracy.settle), some of
+    them refused (a tick past the step a tolerance needs is not; a method that does not exist is)."""
+    scenes = random_scenes(3, "governor", count, seed, reverse=False)
+    scenes = [dataclasses.replace(sc, integrator=dataclasses.replace(sc.integrator, step=None, tolerance=tol))
+              for sc, tol in zip(scenes, [1e-4, 1e-6, 1e-8] * count)]
+    bad = dataclasses.replace(scenes[0], integrator=dataclasses.replace(scenes[0].integrator, method="rk5"))
+    return scenes + [bad]
+
+
+def refusal_or_result(scene, **options):
+    try:
+        return run_metrics(scene, **options)
+    except REFUSALS as err:
+        return err
+
+
+def test_a_batch_settles_each_scene_as_alone_bit_for_bit():
+    """run_metrics_many with the C library's math: every scene's step search, run, companion and
+    metrics as run_metrics alone, to the bit; a refused scene refused with the same line."""
+    scenes = tolerance_scenes(6, 21)
+    alone = [refusal_or_result(sc, fidelity="dynamic") for sc in scenes]
+    many = run_metrics_many(scenes, math="libm", fidelity="dynamic")
+    assert isinstance(alone[-1], REFUSALS) and str(many[-1]) == str(alone[-1])
+    for a, b in zip(alone[:-1], many[:-1]):
+        assert (b.verdict, b.reason, b.level, b.simulated) == (a.verdict, a.reason, a.level, a.simulated)
+        assert_same_bits(list(b.metrics.values()), list(a.metrics.values()))
+        assert_same_bits(b.trace, a.trace)
+    settled = settle_many(scenes[:-1], math="libm", fidelity="dynamic")
+    assert len({run[0].stepper_step for run, _ in settled}) > 1  # the searches took steps of their own
+
+
+def test_with_vmath_a_settled_batch_is_within_1e_10_of_alone():
+    """Every metric within 1e-10 relative; the position error (the distance between a run and its
+    companion, some 1e-8 m from positions of some 10 m: its round-off is absolute) within 1e-12 m."""
+    scenes = tolerance_scenes(6, 22)[:-1]
+    alone = [run_metrics(sc, fidelity="dynamic") for sc in scenes]
+    many = run_metrics_many(scenes, fidelity="dynamic")
+    for a, b in zip(alone, many):
+        for name, want in a.metrics.items():
+            got = b.metrics[name]
+            slack = 1e-12 if name == "position_error_m" else 0.0
+            assert (math.isnan(got) and math.isnan(want)) or abs(got - want) <= 1e-10 * abs(want) + slack, name
+
+
+def test_a_lane_runs_the_same_whatever_its_batch():
+    """A run's bits do not depend on the batch it is in (its width, its place, its neighbours): a
+    sweep's rows are the same on one core, on many and on a Dask cluster."""
+    scenes = random_scenes(3, "governor", 9, 31, reverse=True)
+    together = run_traces(scenes)
+    for k in (0, 4, 8):
+        alone = run_traces([scenes[k]])[0]
+        pair = run_traces([scenes[(k + 1) % 9], scenes[k]])[1]
+        for other in (alone, pair):
+            assert_same_bits(other[1], together[k][1])
+            assert other[3] == together[k][3]
+
+
+def test_long_runs_step_in_narrower_batches_with_the_same_results():
+    scenes = random_scenes(2, "governor", 5, 41, reverse=False)
+    wide = run_traces(scenes, math="libm")
+    rows = wide[0][1].shape[0]
+    budget = 2 * 8 * (whole.TRACE_HEAD + whole.TRACE_CART * 2) * rows
+    assert lanes_batch.lanes_for(scenes[0], rows - 1, budget) == 2
+    assert lanes_batch.lanes_for(scenes[0], rows - 1) >= 5  # by default, all five in one batch
+    narrow = run_traces(scenes, math="libm", trace_bytes=budget)  # batches of 2, 2 and 1
+    for a, b in zip(wide, narrow):
+        assert_same_bits(b[1], a[1])
+        assert b[3] == a[3]

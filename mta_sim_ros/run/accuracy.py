@@ -110,12 +110,42 @@ def companion(sim, options: dict) -> tuple[dict, float, str]:
 
 def estimate(scene, run, **options) -> Accuracy:
     """The accuracy of ``run`` = batch.run_trace(scene, **options) (its companion is run here)."""
+    return drive(scene, estimating(scene, run, options))
+
+
+def settle(scene, **options):
+    """(the run = batch.run_trace(scene, step=..., **options), its Accuracy). With a step (given
+    in ``options`` or by the scene) or an adaptive method: that run and its estimate. Else the
+    fewest steps per tick whose estimate meets the scene's tolerance (module docstring); when no
+    count of at most validate.MAX_STEPS_PER_TICK does, the finest tried, its estimate saying so."""
+    return drive(scene, settling(scene, options))
+
+
+def drive(scene, search):
+    """Run a search (``settling``, ``estimating``) to its answer, each run it asks for run alone
+    (batch.run_trace; lanes_batch.settle_many runs many searches' runs across SIMD lanes)."""
     from .batch import run_trace
 
+    request = next(search)
+    while True:
+        try:
+            try:
+                run = run_trace(scene, **request)
+            except InputError as err:  # the search decides: it gives up on that run, or raises
+                request = search.throw(err)
+            else:
+                request = search.send(run)
+        except StopIteration as answer:
+            return answer.value
+
+
+def estimating(scene, run, options: dict):
+    """``estimate`` as a search: it yields the options of the one run it needs (the companion) and is
+    sent that run (or thrown the InputError its set-up raised); returns the Accuracy."""
     sim, trace = run[0], run[1]
     extra, factor, how = companion(sim, options)
     try:
-        other = run_trace(scene, **extra)
+        other = yield extra
     except InputError as err:  # the companion's half step is past validate.MAX_STEPS_PER_TICK
         return Accuracy(math.nan, scene.integrator.tolerance, sim.method, sim.stepper_step, f"no estimate: {err}")
     error = SAFETY * factor * distance(scene.train, trace[: run[3] + 1], other[1][: other[3] + 1])
@@ -124,16 +154,12 @@ def estimate(scene, run, **options) -> Accuracy:
     return Accuracy(error, scene.integrator.tolerance, sim.method, sim.stepper_step, how)
 
 
-def settle(scene, **options):
-    """(the run = batch.run_trace(scene, step=..., **options), its Accuracy). With a step (given
-    in ``options`` or by the scene) or an adaptive method: that run and its estimate. Else the
-    fewest steps per tick whose estimate meets the scene's tolerance (module docstring); when no
-    count of at most validate.MAX_STEPS_PER_TICK does, the finest tried, its estimate saying so."""
-    from .batch import run_trace
-
+def settling(scene, options: dict):
+    """``settle`` as a search (``estimating``): yields the options of each run it needs
+    (batch.run_trace(scene, **those)), is sent each run; returns (run, Accuracy)."""
     if options.get("step") or scene.integrator.step or run_method(scene, options) not in FIXED_METHODS:
-        run = run_trace(scene, **options)
-        return run, estimate(scene, run, **options)
+        run = yield options
+        return run, (yield from estimating(scene, run, options))
     method = run_method(scene, options)
     tick = 1.0 / (options.get("rate") or scene.publish_rate)
     count, order = 1, TABLEAUX[method].order
@@ -142,12 +168,13 @@ def settle(scene, **options):
     most = max(1, min(MAX_STEPS_PER_TICK // 2, MAX_RUN_STEPS // max(1, 2 * ticks)))
     run = accuracy = None
     for _ in range(ATTEMPTS):
-        trial = _tried(scene, count, options)
-        if trial is None:  # cut shorter still for stability, past validate.MAX_STEPS_PER_TICK
+        try:  # the run at ``count`` steps a tick; refused past validate.MAX_STEPS_PER_TICK (stability)
+            trial = yield dict(options, step=tick / count)
+        except InputError:
             if run is None:
-                run_trace(scene, **dict(options, step=tick / count))  # raises, saying why
+                yield dict(options, step=tick / count)  # raises, saying why
             break
-        stated = estimate(scene, trial, **dict(options, step=tick / count))
+        stated = yield from estimating(scene, trial, dict(options, step=tick / count))
         if run is not None and not stated.error <= accuracy.error:  # at round-off: more steps do no better
             break
         run, accuracy = trial, stated
@@ -159,17 +186,6 @@ def settle(scene, **options):
         if count <= done:  # the run's size allows no more steps
             break
     return run, accuracy
-
-
-def _tried(scene, count: int, options: dict):
-    """The run at ``count`` steps a tick, or None where it would take more than
-    validate.MAX_STEPS_PER_TICK (cut shorter still for stability)."""
-    from .batch import run_trace
-
-    try:
-        return run_trace(scene, **dict(options, step=1.0 / (options.get("rate") or scene.publish_rate) / count))
-    except InputError:
-        return None
 
 
 def run_method(scene, options: dict) -> str:

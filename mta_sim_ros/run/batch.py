@@ -166,7 +166,12 @@ def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Except
 def run_metrics(scene, **options) -> RunResult:
     """Run ``scene`` to its end (or to the guard that stops it) and measure it (module docstring).
     ``options`` as for ``Simulation``. Input faults (a bad scene, a step refused) raise as there."""
-    (sim, trace, commands, done, err), stated = settle(scene, **options)
+    return result_of(scene, *settle(scene, **options))
+
+
+def result_of(scene, run, stated) -> RunResult:
+    """The RunResult of ``run`` (run_trace's tuple) of ``scene`` and its stated Accuracy."""
+    sim, trace, commands, done, err = run
     used = trace[: done + 1]
     result = metrics(scene.train, used, sim.tick, commands[:done])
     result["position_error_m"] = stated.error

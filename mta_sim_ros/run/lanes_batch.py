@@ -15,42 +15,129 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..integrate import IntegrationError
 from ..physics import kernel
+from ..physics.guards import ModelValidityError
+from ..validate import InputError
 from . import whole, whole_lanes
-from .batch import continue_run, run_trace, scheduled_inputs
+from .accuracy import settling
+from .batch import continue_run, result_of, run_trace, scheduled_inputs
 from .simulation import Simulation
 
 MATHS = ("vmath", "libm")
+#: at most this many lanes a batch: past a few hundred a batch's rows leave the caches, and it runs no faster
+LANES = 256
+#: a batch's traces take at most this many bytes (a long run steps with fewer lanes)
+TRACE_BYTES = 64 * 2**20
 
 
 def lane_key(sim: Simulation, ticks: int):
-    """What runs of one batch share, or None for a run that cannot join one: the packed constants'
-    shape (packing.shape_of), the outputs' length, the method's tableau, the tick, the step, kink
+    """What runs of one batch share, or None for a run that cannot join one: the shapes of the packed
+    constants of the model and of its outputs (packing.shape_of), the method's tableau, the tick, the step, kink
     splitting and the number of ticks."""
     if not sim.compiled or not sim.kernel_ticks or sim.model.P[kernel.H.relief]:
         return None
     stepper = sim.stepper
-    return (kernel.shape_of(sim.model.P), len(sim.model.P_outputs), stepper.tableau.packed.tobytes(), sim.tick,
+    return (kernel.shape_of(sim.model.P), kernel.shape_of(sim.model.P_outputs), stepper.tableau.packed.tobytes(), sim.tick,
             stepper.step, bool(stepper.split_kinks), ticks, sim.y.shape[0])
 
 
-def run_traces(scenes, math: str = "vmath", **options) -> list:
-    """``run_trace(scene, **options)`` of every scene (module docstring), in order."""
+#: what refuses one run of a batch without touching the others (the sweep engine's refusals)
+REFUSALS = (InputError, ModelValidityError, IntegrationError, ValueError)
+
+
+def run_traces(scenes, math: str = "vmath", trace_bytes: int = TRACE_BYTES, **options) -> list:
+    """``run_trace(scene, **options)`` of every scene (module docstring), in order; a scene's
+    refusal raises as there. ``trace_bytes``: run_each's."""
+    runs = run_each([(scene, options) for scene in scenes], math, trace_bytes)
+    for run in runs:
+        if isinstance(run, Exception):
+            raise run
+    return runs
+
+
+def run_each(requests, math: str = "vmath", trace_bytes: int = TRACE_BYTES) -> list:
+    """``run_trace(scene, **options)`` of every (scene, options) request, in order: the run's tuple,
+    or the refusal (REFUSALS) its set-up raised. Runs that share a ``lane_key`` run as batches of
+    ``lanes_for`` lanes (their traces within ``trace_bytes``)."""
     if math not in MATHS:
         raise ValueError(f"math: {math!r} is not one of {', '.join(MATHS)}")
-    sims = [Simulation(scene, **options) for scene in scenes]
-    inputs = [scheduled_inputs(scene, sim) for scene, sim in zip(scenes, sims)]
+    out: list = [None] * len(requests)
     groups: dict = {}
-    for i, (sim, (commands, _)) in enumerate(zip(sims, inputs)):
-        groups.setdefault(lane_key(sim, commands.shape[0]), []).append(i)
-    out: list = [None] * len(sims)
+    sims, inputs = {}, {}
+    for i, (scene, options) in enumerate(requests):
+        try:
+            sims[i] = Simulation(scene, **options)
+        except REFUSALS as err:
+            out[i] = err
+            continue
+        inputs[i] = scheduled_inputs(scene, sims[i])
+        groups.setdefault(lane_key(sims[i], inputs[i][0].shape[0]), []).append(i)
     for key, members in groups.items():
         if key is None:
             for i in members:
-                out[i] = run_trace(scenes[i], **options)
+                out[i] = run_trace(requests[i][0], **requests[i][1])
             continue
-        for i, result in zip(members, _run_batch([sims[i] for i in members], [inputs[i] for i in members], math)):
-            out[i] = result
+        size = lanes_for(requests[members[0]][0], key[6], trace_bytes)
+        for first in range(0, len(members), size):
+            some = members[first:first + size]
+            for i, run in zip(some, _run_batch([sims[i] for i in some], [inputs[i] for i in some], math)):
+                out[i] = run
+    return out
+
+
+def lanes_for(scene, ticks: int, trace_bytes: int = TRACE_BYTES) -> int:
+    """How many runs of ``scene``'s shape step together: at most LANES, and at most as many as keep
+    their traces (ticks + 1 rows of whole.trace_row each) within ``trace_bytes``."""
+    row = 8 * (whole.TRACE_HEAD + whole.TRACE_CART * scene.train.n)
+    return max(1, min(LANES, trace_bytes // (row * (ticks + 1))))
+
+
+def settle_many(scenes, math: str = "vmath", **options) -> list:
+    """``accuracy.settle(scene, **options)`` of every scene, in order: (run, Accuracy), or the
+    refusal that stopped that scene. Each scene's search (``accuracy.settling``) runs as alone; the
+    runs the searches ask for in the same round run as batches (``run_each``)."""
+    searches = {i: settling(scene, options) for i, scene in enumerate(scenes)}
+    out: list = [None] * len(scenes)
+    requests = {}
+    for i, search in searches.items():
+        try:
+            requests[i] = next(search)
+        except REFUSALS as err:
+            out[i] = err
+    while requests:
+        order = list(requests)
+        runs = run_each([(scenes[i], requests[i]) for i in order], math)
+        requests = {}
+        for i, run in zip(order, runs):
+            if isinstance(run, Exception) and not isinstance(run, InputError):
+                out[i] = run  # alone, it would leave settle as it is
+                continue
+            try:
+                try:
+                    if isinstance(run, InputError):  # the search decides: it gives up on that run, or raises
+                        requests[i] = searches[i].throw(run)
+                    else:
+                        requests[i] = searches[i].send(run)
+                except StopIteration as answer:
+                    out[i] = answer.value
+            except REFUSALS as err:
+                out[i] = err
+    return out
+
+
+def run_metrics_many(scenes, math: str = "vmath", **options) -> list:
+    """``batch.run_metrics(scene, **options)`` of every scene, in order: its RunResult, or the
+    refusal (REFUSALS) that stopped it. The runs and their companions run across SIMD lanes."""
+    out = []
+    for scene, settled in zip(scenes, settle_many(scenes, math, **options)):
+        if isinstance(settled, Exception):
+            out.append(settled)
+            continue
+        try:
+            out.append(result_of(scene, *settled))
+        except REFUSALS as err:
+            out.append(err)
     return out
 
 
@@ -62,21 +149,24 @@ def _run_batch(sims, inputs, math):
     n = first.model.layout.n
     P = kernel.stack([sim.model.P for sim in sims])
     P_rows = np.ascontiguousarray(P.T)
-    P_out_rows = np.ascontiguousarray(np.stack([sim.model.P_outputs for sim in sims]))
+    P_out = kernel.stack([sim.model.P_outputs for sim in sims])
     y0 = np.ascontiguousarray(np.stack([np.asarray(sim.y, dtype=np.float64) for sim in sims], axis=1))
     commands = np.ascontiguousarray(np.stack([c for c, _ in inputs], axis=1))
     v_sets = np.ascontiguousarray(np.stack([v for _, v in inputs], axis=1))
     max_rates = np.ascontiguousarray(np.tile([sim.max_rate for sim in sims], (ticks, 1)))
-    traces = np.full((L, ticks + 1, whole.TRACE_HEAD + whole.TRACE_CART * n), np.nan)
+    columns = np.full((ticks + 1, whole.TRACE_HEAD + whole.TRACE_CART * n, L), np.nan)
     for j, sim in enumerate(sims):
         y = y0[:, j].copy()
-        traces[j, 0] = whole.trace_of(sim.model.P_outputs, y, float(sim.command),
-                                      float(sim.model.output_input(y, sim.v_set)), sim.max_rate)
+        columns[0, :, j] = whole.trace_of(sim.model.P_outputs, y, float(sim.command),
+                                          float(sim.model.output_input(y, sim.v_set)), sim.max_rate)
     done = np.zeros(L, dtype=np.int64)
     stepper = first.stepper
     run = whole_lanes.run_lanes if math == "vmath" else whole_lanes.run_lanes_libm_of
-    y, counts = run(P, P_rows, P_out_rows, stepper.tableau.packed, y0, commands, v_sets, max_rates,
-                            first.tick, stepper.step, stepper.split_kinks, traces, done)
+    y, counts = run(P, P_rows, P_out, stepper.tableau.packed, y0, commands, v_sets, max_rates, first.tick, stepper.step,
+                    stepper.split_kinks, columns, done)
+    traces = np.ascontiguousarray(columns.transpose(2, 0, 1))  # a lane's trace a row per tick, as run_trace's
+    for j in range(L):
+        traces[j, done[j] + 1:] = np.nan  # a lane that stopped: its trace ends there (the kernel stepped on)
     results = []
     for j, sim in enumerate(sims):
         sim.stepper.nfev += int(counts[0, j])

@@ -8,13 +8,15 @@ actuator lets go of its rate limit inside a step, or one of whose switching func
 across a step, has that tick redone alone by the scalar ``advance_in`` from the tick's start, which
 splits it exactly as ``whole.run`` does. A lane whose state is not ``clear`` after a tick stops
 there (its ``done``): the caller's guard decides, as for ``whole.run``, and continues it alone if
-the guard lets it go on. The trace rows are ``whole.trace_row``'s, a lane at a time.
+the guard lets it go on. The trace rows are ``whole.trace_row``'s, every lane at once
+(trace_lanes.py).
 
-Arrays: P (len(P), L) the stacked constants (packing.stack), P_rows and P_out_rows (L, len) each
-lane's P and P_out in a row (the scalar calls read them), y (size, L), commands, v_sets, max_rates
-(ticks, L), traces (L, ticks + 1, width). ``runner_with`` binds the batch's stepper and switching
-functions: with the C library's (``run_lanes_libm``) every lane's trace is ``whole.run``'s bit for
-bit (test/test_whole_lanes.py), with vmath's (``run_lanes``) within the issue's bound."""
+Arrays: P and P_out (len, L) the stacked constants of the model and of its outputs
+(packing.stack), P_rows (L, len) each lane's P in a row (the scalar calls read it), y (size, L),
+commands, v_sets, max_rates (ticks, L), traces (ticks + 1, width, L): a tick's trace rows, a column
+per lane. ``runner_with`` binds the batch's stepper, switching functions and trace: with the C
+library's math (``run_lanes_libm``) every lane's trace is ``whole.run``'s bit for bit
+(test/test_whole_lanes.py), with vmath's (``run_lanes``) within the issue's bound."""
 from __future__ import annotations
 
 import math
@@ -24,17 +26,17 @@ import numpy as np
 from ..integrate.rk import EDGE, advance_in, workspace
 from ..integrate.rk_lanes import arrays, rk_step_lanes, rk_step_lanes_libm
 from ..jit import jitable, lanes
-from ..physics.kernel.base import FORCE_SWITCHES, HIGH, KINEMATIC, LOW, NATURAL, OUT, SCALARS, H
+from ..physics.kernel.base import FORCE_SWITCHES, HIGH, KINEMATIC, LOW, NATURAL, H
 from ..physics.kernel.batched import WORK_ROWS, switches_lanes, switches_lanes_libm
 from ..physics.kernel.laws import actuator_release
 from ..physics.kernel.motion import clear, model_rhs, switches
-from .whole import trace_row
+from .trace_lanes import trace_arrays, trace_lanes, trace_lanes_libm
 
 
 @jitable
 def lane_arrays(P_rows, T, y0, split):
-    """What a batch run works in besides the step's arrays: (start, last, g0, g1, mode, lag, release,
-    released, alone, active, counts, scratch, lane_y, cart, sc, dy); ``counts`` (3, L): right-hand
+    """What a batch run works in besides the step's and the trace's arrays: (start, last, g0, g1, mode,
+    lag, release, released, alone, active, counts, scratch, lane_y); ``counts`` (3, L): right-hand
     sides, kinks split at and ticks redone alone per lane."""
     size, L = y0.shape[0], y0.shape[1]
     n = int(P_rows[0, H.n])
@@ -42,8 +44,7 @@ def lane_arrays(P_rows, T, y0, split):
     mode = np.full((1 + width, L), NATURAL, dtype=np.int64) if split else np.empty((0, L), dtype=np.int64)
     return (y0.copy(), np.empty_like(y0), np.empty((width, L)), np.empty((width, L)), mode, np.zeros((5, L)),
             np.empty(L), np.zeros(L, dtype=np.bool_), np.zeros(L, dtype=np.bool_), np.ones(L, dtype=np.bool_),
-            np.zeros((3, L), dtype=np.int64), workspace(P_rows[0], T, size), np.empty(size), np.empty((n, OUT)),
-            np.empty(SCALARS), np.empty(size))
+            np.zeros((3, L), dtype=np.int64), workspace(P_rows[0], T, size), np.empty(size))
 
 
 @jitable
@@ -82,34 +83,38 @@ def hold_branches(step, h, mode, lag, release, released, alone):
 
 
 @jitable
-def end_tick(P_rows, P_out_rows, T, y, i, t0, t1, count, command, v_set, max_rate, max_step, split, traces, done,
-             lane):
-    """Each active lane after a tick: redone alone where it met a kink (``advance_in`` from the
-    tick's start, split as ``whole.run`` splits it), its trace row, and stopped where its state is
-    not ``clear``. Returns whether a lane is still running."""
-    start, last, _, _, _, _, _, _, alone, active, counts, scratch, lane_y, cart, sc, dy = lane
+def redo_alone(P_rows, T, y, t0, t1, count, command, v_set, max_rate, max_step, split, lane):
+    """Each running lane that met a kink inside the tick: the tick again from its start, alone
+    (``advance_in``, split as ``whole.run`` splits it)."""
+    start, _, _, _, _, _, _, _, alone, active, counts, scratch, lane_y = lane
     size, L = y.shape[0], y.shape[1]
-    n = int(P_rows[0, H.n])
-    kinematic = int(P_rows[0, H.law]) == KINEMATIC
     stages = T.shape[0] - 2
+    for j in range(L):
+        if not (active[j] and alone[j]):
+            continue
+        for m in range(size):
+            lane_y[m] = start[m, j]
+        out, used, split_at = advance_in(model_rhs, switches, P_rows[j], T, lane_y, command[j], v_set[j],
+                                         max_rate[j], t0, t1, max_step, split, scratch)
+        for m in range(size):
+            y[m, j] = out[m]
+        counts[0, j] += used - stages * count
+        counts[1, j] += split_at
+        counts[2, j] += 1
+
+
+@jitable
+def stop_lanes(P_rows, y, i, done, lane):
+    """Each running lane whose state after tick i is not ``clear`` stops there (its ``done``, its
+    state kept in ``last``). Returns whether a lane is still running."""
+    _, last, _, _, _, _, _, _, _, active, _, _, lane_y = lane
+    size, L = y.shape[0], y.shape[1]
     running = False
     for j in range(L):
         if not active[j]:
             continue
-        if alone[j]:
-            for m in range(size):
-                lane_y[m] = start[m, j]
-            out, used, split_at = advance_in(model_rhs, switches, P_rows[j], T, lane_y, command[j], v_set[j],
-                                             max_rate[j], t0, t1, max_step, split, scratch)
-            for m in range(size):
-                y[m, j] = out[m]
-            counts[0, j] += used - stages * count
-            counts[1, j] += split_at
-            counts[2, j] += 1
         for m in range(size):
             lane_y[m] = y[m, j]
-        law_input = y[n + 3, j] + y[n + 4, j] if kinematic else v_set[j]
-        trace_row(P_out_rows[j], lane_y, command[j], law_input, max_rate[j], cart, sc, dy, traces[j, i + 1])
         if clear(P_rows[j], lane_y):
             running = True
         else:
@@ -120,8 +125,9 @@ def end_tick(P_rows, P_out_rows, T, y, i, t0, t1, count, command, v_set, max_rat
     return running
 
 
-def runner_with(step_lanes, switches_of):
-    """``run_lanes`` stepping with ``step_lanes`` and watching ``switches_of`` (their math bound)."""
+def runner_with(step_lanes, switches_of, trace_of):
+    """``run_lanes`` stepping with ``step_lanes``, watching ``switches_of`` and tracing with ``trace_of``
+    (their math bound)."""
 
     @jitable
     def step_tick(P, T, y, y1, command, v_set, max_rate, count, h, split, step_arrays, lane):
@@ -129,7 +135,7 @@ def runner_with(step_lanes, switches_of):
         switching functions change sign across a step is marked to be redone alone. Returns the
         arrays holding the state after the tick and the other one."""
         K, tmp, _, rec, work, acc = step_arrays
-        _, _, g0, g1, mode, lag, release, released, alone, active, counts, _, _, _, _, _ = lane
+        _, _, g0, g1, mode, lag, release, released, alone, active, counts, _, _ = lane
         L = y.shape[1]
         stages = T.shape[0] - 2
         m_sw = switches_of(P, y, v_set, g0, work) if split else 0
@@ -154,14 +160,18 @@ def runner_with(step_lanes, switches_of):
         return y, y1
 
     @jitable
-    def run_lanes(P, P_rows, P_out_rows, T, y0, commands, v_sets, max_rates, tick, max_step, split, traces, done):
+    def run_lanes(P, P_rows, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split, traces, done):
         """Ticks 0, 1, ... of every lane (module docstring); ``done`` (L,) gets the ticks each lane
         ran (it stops after its first tick whose state is not ``clear``). Returns (y (size, L) at each
         lane's last tick, counts (3, L): right-hand sides evaluated, kinks split at and ticks redone
         alone, per lane)."""
         step_arrays = arrays(T, y0)
         lane = lane_arrays(P_rows, T, y0, split)
-        start, last, _, _, _, lag, release, released, alone, active, counts, _, _, _, _, _ = lane
+        start, last, _, _, _, lag, release, released, alone, active, counts, _, _ = lane
+        dy, rec, no_mode, work, frame = trace_arrays(P_out, y0)
+        n = int(P[H.n, 0])
+        kinematic = int(P[H.law, 0]) == KINEMATIC
+        law_inputs = np.empty(y0.shape[1])
         y, y1 = y0.copy(), step_arrays[2]
         done[:] = commands.shape[0]
         for i in range(commands.shape[0]):
@@ -172,8 +182,11 @@ def runner_with(step_lanes, switches_of):
             begin_tick(P_rows, y, start, commands[i], v_sets[i], max_rates[i], tick, h, split, lag, release, released,
                        alone)
             y, y1 = step_tick(P, T, y, y1, commands[i], v_sets[i], max_rates[i], count, h, split, step_arrays, lane)
-            if not end_tick(P_rows, P_out_rows, T, y, i, t0, t1, count, commands[i], v_sets[i], max_rates[i],
-                            max_step, split, traces, done, lane):
+            redo_alone(P_rows, T, y, t0, t1, count, commands[i], v_sets[i], max_rates[i], max_step, split, lane)
+            for j in range(y.shape[1]):  # what the outputs' traction law sees (as whole.run)
+                law_inputs[j] = y[n + 3, j] + y[n + 4, j] if kinematic else v_sets[i, j]
+            trace_of(P_out, y, commands[i], law_inputs, max_rates[i], dy, rec, no_mode, work, frame, traces[i + 1])
+            if not stop_lanes(P_rows, y, i, done, lane):
                 break
         for j in range(y.shape[1]):
             if active[j]:
@@ -183,20 +196,20 @@ def runner_with(step_lanes, switches_of):
     return run_lanes
 
 
-run_lanes_vmath = runner_with(rk_step_lanes, switches_lanes)
-run_lanes_libm = runner_with(rk_step_lanes_libm, switches_lanes_libm)
+run_lanes_vmath = runner_with(rk_step_lanes, switches_lanes, trace_lanes)
+run_lanes_libm = runner_with(rk_step_lanes_libm, switches_lanes_libm, trace_lanes_libm)
 
 
 @lanes
-def run_lanes(P, P_rows, P_out_rows, T, y0, commands, v_sets, max_rates, tick, max_step, split, traces, done):
+def run_lanes(P, P_rows, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split, traces, done):
     """``run_lanes`` with vmath's math (vectorised): a sweep's batch."""
-    return run_lanes_vmath(P, P_rows, P_out_rows, T, y0, commands, v_sets, max_rates, tick, max_step, split,
+    return run_lanes_vmath(P, P_rows, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split,
                            traces, done)
 
 
 @lanes
-def run_lanes_libm_of(P, P_rows, P_out_rows, T, y0, commands, v_sets, max_rates, tick, max_step, split, traces,
+def run_lanes_libm_of(P, P_rows, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split, traces,
                       done):
     """``run_lanes`` with the C library's math: every lane ``whole.run``'s to the bit."""
-    return run_lanes_libm(P, P_rows, P_out_rows, T, y0, commands, v_sets, max_rates, tick, max_step, split,
+    return run_lanes_libm(P, P_rows, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split,
                           traces, done)

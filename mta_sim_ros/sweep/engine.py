@@ -27,9 +27,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .. import __version__
-from ..integrate import IntegrationError
-from ..physics.guards import ModelValidityError
 from ..run.batch import OK, metric_names, run_metrics
+from ..run.lanes_batch import REFUSALS, run_metrics_many
 from ..validate import InputError, fail, one_line, show
 from ..field.scene import FieldScene
 from . import spec as sweep_spec
@@ -95,11 +94,14 @@ def train_hash(train) -> str:
 
 
 def run_schemes(spec, schemes: list[tuple[int, tuple]]) -> list[dict]:
-    """The rows of the given (index, scheme) pairs, every scene of each, in order."""
-    rows = []
+    """The rows of the given (index, scheme) pairs, every scene of each, in order. The runs of scenes
+    that are not field scenes run together (run.lanes_batch: those of one shape across SIMD lanes),
+    each run's row as it would be alone."""
+    rows: list = []
     names = all_metric_names(spec)
     scenes = spec.scene_names
     fidelity = None if spec.fidelity == "auto" else spec.fidelity
+    todo = []  # (row's place, base, index, scene's place, scene, train)
     for index, scheme in schemes:
         base = {"scheme": index, **sweep_spec.scheme_label(spec, scheme), "version": __version__, "seed": spec.seed}
         try:
@@ -113,15 +115,24 @@ def run_schemes(spec, schemes: list[tuple[int, tuple]]) -> list[dict]:
             rows += [_row(base, index, j, scenes, names, DROPPED, broken) for j in range(len(scenes))]
             continue
         for j, scene in enumerate(built):
+            todo.append((len(rows), base, index, j, scene, train))
+            rows.append(None)
+    plain = [t for t in todo if not isinstance(t[4], FieldScene)]
+    results = dict(zip((t[0] for t in plain), run_metrics_many([t[4] for t in plain], fidelity=fidelity)))
+    for place, base, index, j, scene, train in todo:
+        if place in results:
+            result = results[place]
+        else:
             try:
-                result = run_field_scene(scene, train) if isinstance(scene, FieldScene) else run_metrics(
-                    scene, fidelity=fidelity)
-            except (InputError, ModelValidityError, IntegrationError, ValueError) as err:
-                rows.append(_row(base, index, j, scenes, names, REFUSED, str(err)))
-                continue
-            row = _row(base, index, j, scenes, names, result.verdict, result.reason)
-            row.update(level=result.level, simulated_s=result.simulated, **result.metrics)
-            rows.append(row)
+                result = run_field_scene(scene, train)
+            except REFUSALS as err:
+                result = err
+        if isinstance(result, Exception):
+            rows[place] = _row(base, index, j, scenes, names, REFUSED, str(result))
+            continue
+        row = _row(base, index, j, scenes, names, result.verdict, result.reason)
+        row.update(level=result.level, simulated_s=result.simulated, **result.metrics)
+        rows[place] = row
     return rows
 
 

@@ -26,7 +26,7 @@ A spec is a YAML file (config/sweeps/hitching.yaml is the worked example)::
     constraints:                        # a scheme that breaks one is dropped before it runs
       - {quantity: total_length, max: 20}                          # total_length, total_mass, carts
     bags: [0, 5]                        # runs that also write a bag (run index), default none
-    batch: 16                           # runs per task
+    batch: 128                          # runs per task (a task's runs of one shape step together)
 
 A path names a field of the train file's mapping (``carts[2].hitch_offset``, ``forces.draft[0].width``,
 ``steering_actuator.time_constant``) or, after ``scene.``, of every scene's (``scene.speed``,
@@ -194,7 +194,7 @@ def load(path: str | os.PathLike) -> Spec:
                 constraints=[], bags=frozenset(), batch=1, text=text)
     spec.factors = _factors(top, spec)
     spec.constraints = [_constraint(s) for s in top.sections("constraints", ("quantity", "min", "max"))]
-    spec.batch = int(_whole(top, "batch", BATCH, 16))
+    spec.batch = int(_whole(top, "batch", BATCH, 128))
     schemes = scheme_count(spec)
     if schemes > MAX_SCHEMES or schemes * len(scenes) > MAX_RUNS:
         top.fail("vary", f"{schemes} schemes x {len(scenes)} scenes",
