@@ -320,9 +320,13 @@ def _same(a: float, b: float) -> bool:
 
 
 def _assert_row_metrics(result: batch.RunResult, row) -> None:
+    """The run alone gives the sweep's row: a sweep runs across SIMD lanes with vmath's sin, cos,
+    atan2, tanh and exp (run/lanes_batch.py), within 1e-10 relative of the C library's run alone,
+    the position error (a difference of two runs) within 1e-12 m."""
     assert result.verdict == row["verdict"] and result.level == row["level"]
     for name, value in result.metrics.items():
-        assert _same(value, row[name]), (name, value, row[name])
+        slack = 1e-12 if name == "position_error_m" else 0.0
+        assert _same(value, row[name]) or abs(value - row[name]) <= 1e-10 * abs(value) + slack, (name, value, row[name])
 
 
 def test_export_runs_as_the_sweep_ran_it(grid, tmp_path):

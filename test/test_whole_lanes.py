@@ -129,7 +129,7 @@ def test_a_batch_settles_each_scene_as_alone_bit_for_bit():
     metrics as run_metrics alone, to the bit; a refused scene refused with the same line."""
     scenes = tolerance_scenes(6, 21)
     alone = [refusal_or_result(sc, fidelity="dynamic") for sc in scenes]
-    many = run_metrics_many(scenes, math="libm", fidelity="dynamic")
+    many = run_metrics_many(scenes, math="libm", keep_traces=True, fidelity="dynamic")
     assert isinstance(alone[-1], REFUSALS) and str(many[-1]) == str(alone[-1])
     for a, b in zip(alone[:-1], many[:-1]):
         assert (b.verdict, b.reason, b.level, b.simulated) == (a.verdict, a.reason, a.level, a.simulated)

@@ -13,6 +13,8 @@ library's, every lane's trace ``run_trace``'s bit for bit: the proof that the ba
 physics)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..integrate import IntegrationError
@@ -28,7 +30,7 @@ MATHS = ("vmath", "libm")
 #: at most this many lanes a batch: past a few hundred a batch's rows leave the caches, and it runs no faster
 LANES = 256
 #: a batch's traces take at most this many bytes (a long run steps with fewer lanes)
-TRACE_BYTES = 64 * 2**20
+TRACE_BYTES = 32 * 2**20
 
 
 def lane_key(sim: Simulation, ticks: int):
@@ -126,19 +128,37 @@ def settle_many(scenes, math: str = "vmath", **options) -> list:
     return out
 
 
-def run_metrics_many(scenes, math: str = "vmath", **options) -> list:
+def run_metrics_many(scenes, math: str = "vmath", keep_traces: bool = False, trace_bytes: int = TRACE_BYTES,
+                     **options) -> list:
     """``batch.run_metrics(scene, **options)`` of every scene, in order: its RunResult, or the
-    refusal (REFUSALS) that stopped it. The runs and their companions run across SIMD lanes."""
-    out = []
-    for scene, settled in zip(scenes, settle_many(scenes, math, **options)):
-        if isinstance(settled, Exception):
-            out.append(settled)
-            continue
-        try:
-            out.append(result_of(scene, *settled))
-        except REFUSALS as err:
-            out.append(err)
+    refusal (REFUSALS) that stopped it. The runs and their companions run across SIMD lanes, in
+    chunks of scenes alike (the same scene's name, carts, duration and rate) whose traces fit in
+    ``trace_bytes``: a chunk's runs and companions are all that is held at once. A RunResult's
+    trace is kept only with ``keep_traces`` (a sweep reads the metrics)."""
+    out: list = [None] * len(scenes)
+    alike: dict = {}
+    for i, scene in enumerate(scenes):
+        alike.setdefault((scene.name, scene.train.n, scene.duration, scene.publish_rate), []).append(i)
+    for members in alike.values():
+        first = scenes[members[0]]
+        size = lanes_for(first, int(first.duration * first.publish_rate + 1e-9), trace_bytes)
+        for start in range(0, len(members), size):
+            some = members[start:start + size]
+            chunk = [scenes[i] for i in some]
+            for i, scene, settled in zip(some, chunk, settle_many(chunk, math, **options)):
+                out[i] = _result(scene, settled, keep_traces)
     return out
+
+
+def _result(scene, settled, keep_trace: bool):
+    """The RunResult of a settled run (or its refusal), its trace dropped unless kept."""
+    if isinstance(settled, Exception):
+        return settled
+    try:
+        result = result_of(scene, *settled)
+    except REFUSALS as err:
+        return err
+    return result if keep_trace else dataclasses.replace(result, trace=None)
 
 
 def _run_batch(sims, inputs, math):
@@ -154,19 +174,16 @@ def _run_batch(sims, inputs, math):
     commands = np.ascontiguousarray(np.stack([c for c, _ in inputs], axis=1))
     v_sets = np.ascontiguousarray(np.stack([v for _, v in inputs], axis=1))
     max_rates = np.ascontiguousarray(np.tile([sim.max_rate for sim in sims], (ticks, 1)))
-    columns = np.full((ticks + 1, whole.TRACE_HEAD + whole.TRACE_CART * n, L), np.nan)
+    traces = np.full((L, ticks + 1, whole.TRACE_HEAD + whole.TRACE_CART * n), np.nan)
     for j, sim in enumerate(sims):
         y = y0[:, j].copy()
-        columns[0, :, j] = whole.trace_of(sim.model.P_outputs, y, float(sim.command),
-                                          float(sim.model.output_input(y, sim.v_set)), sim.max_rate)
+        traces[j, 0] = whole.trace_of(sim.model.P_outputs, y, float(sim.command),
+                                      float(sim.model.output_input(y, sim.v_set)), sim.max_rate)
     done = np.zeros(L, dtype=np.int64)
     stepper = first.stepper
     run = whole_lanes.run_lanes if math == "vmath" else whole_lanes.run_lanes_libm_of
     y, counts = run(P, P_rows, P_out, stepper.tableau.packed, y0, commands, v_sets, max_rates, first.tick, stepper.step,
-                    stepper.split_kinks, columns, done)
-    traces = np.ascontiguousarray(columns.transpose(2, 0, 1))  # a lane's trace a row per tick, as run_trace's
-    for j in range(L):
-        traces[j, done[j] + 1:] = np.nan  # a lane that stopped: its trace ends there (the kernel stepped on)
+                    stepper.split_kinks, traces, done)
     results = []
     for j, sim in enumerate(sims):
         sim.stepper.nfev += int(counts[0, j])

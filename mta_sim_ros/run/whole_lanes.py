@@ -13,8 +13,8 @@ the guard lets it go on. The trace rows are ``whole.trace_row``'s, every lane at
 
 Arrays: P and P_out (len, L) the stacked constants of the model and of its outputs
 (packing.stack), P_rows (L, len) each lane's P in a row (the scalar calls read it), y (size, L),
-commands, v_sets, max_rates (ticks, L), traces (ticks + 1, width, L): a tick's trace rows, a column
-per lane. ``runner_with`` binds the batch's stepper, switching functions and trace: with the C
+commands, v_sets, max_rates (ticks, L), traces (L, ticks + 1, width): each lane's trace as
+``whole.run`` writes it (a tick's rows are made across lanes in a (width, L) buffer and copied in). ``runner_with`` binds the batch's stepper, switching functions and trace: with the C
 library's math (``run_lanes_libm``) every lane's trace is ``whole.run``'s bit for bit
 (test/test_whole_lanes.py), with vmath's (``run_lanes``) within the issue's bound."""
 from __future__ import annotations
@@ -172,6 +172,7 @@ def runner_with(step_lanes, switches_of, trace_of):
         n = int(P[H.n, 0])
         kinematic = int(P[H.law, 0]) == KINEMATIC
         law_inputs = np.empty(y0.shape[1])
+        rows = np.empty((traces.shape[2], y0.shape[1]))
         y, y1 = y0.copy(), step_arrays[2]
         done[:] = commands.shape[0]
         for i in range(commands.shape[0]):
@@ -185,7 +186,11 @@ def runner_with(step_lanes, switches_of, trace_of):
             redo_alone(P_rows, T, y, t0, t1, count, commands[i], v_sets[i], max_rates[i], max_step, split, lane)
             for j in range(y.shape[1]):  # what the outputs' traction law sees (as whole.run)
                 law_inputs[j] = y[n + 3, j] + y[n + 4, j] if kinematic else v_sets[i, j]
-            trace_of(P_out, y, commands[i], law_inputs, max_rates[i], dy, rec, no_mode, work, frame, traces[i + 1])
+            trace_of(P_out, y, commands[i], law_inputs, max_rates[i], dy, rec, no_mode, work, frame, rows)
+            for j in range(y.shape[1]):
+                if active[j]:  # a lane that has stopped keeps its trace as it stopped
+                    for c in range(rows.shape[0]):
+                        traces[j, i + 1, c] = rows[c, j]
             if not stop_lanes(P_rows, y, i, done, lane):
                 break
         for j in range(y.shape[1]):
