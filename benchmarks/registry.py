@@ -19,6 +19,8 @@ throughput/   how much is done in a second
   lanes           the lanes' math (physics/kernel/vmath.py) against libm, numpy and gcc's libmvec:
                   ns per value, accuracy, the instructions each loop compiled to; the shapes of a
                   loop over schemes that LLVM vectorises (lanes_shapes.py)
+  sweep-lanes     a sweep's run across SIMD lanes (run/lanes_batch.py) against alone, by batch width
+                  and carts: ms per run, runs/s/core, the metrics' largest difference, peak memory
 node/         the running node over DDS
   realtime        the node at real-time factor 1, steered by a player process (player.py; ``--stages``: the
                   node's tick profile, stages.py)
@@ -45,6 +47,7 @@ MODULES = {
     "kinks": "accuracy.kinks", "fidelity": "accuracy.fidelity", "estimate": "accuracy.estimate",
     "scaling": "throughput.scaling", "tick_parts": "throughput.tick_parts", "sweep": "throughput.sweep",
     "field": "throughput.field", "lanes": "throughput.lanes",
+    "sweep_lanes": "throughput.sweep_lanes",
     "realtime": "node.realtime", "sigkill": "node.sigkill", "flood": "node.flood",
     "reversing": "controllers.reversing",
 }

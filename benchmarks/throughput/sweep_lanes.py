@@ -1,0 +1,145 @@
+"""``python -m benchmarks sweep-lanes``: a sweep's run across SIMD lanes (run/lanes_batch.py) against the
+same run alone, by the width of the batch and the number of carts.
+
+The headland turn (config/scenes/headland_turn.yaml: 70 s, rk4, the step its tolerance 1e-6 m
+chooses, 50 Hz) driven by random trains of 2, 3 and 5 carts (the governor, a draft on the last
+cart and from 3 carts one on the second; benchmarks/throughput/lanes_rhs.py), fidelity dynamic.
+For each number of carts and batch width, side by side in turns (thread CPU time, medians):
+
+- ``alone``: ``batch.run_metrics`` of each scheme, one after the other (a sweep's run before
+  issue 24: the step search, the run and its companion at half the step, the metrics);
+- ``lanes``: ``lanes_batch.run_metrics_many`` of the batch (what ``mta sweep`` runs now);
+- the kernel's part alone: the run at 0.02 s without metrics or companion, ``batch.run_trace`` of
+  each scheme against ``lanes_batch.run_traces`` of the batch (vmath).
+
+ms per run and runs/s/core; the largest relative difference of any metric between the two (the
+position error apart, whose round-off is absolute); the process's peak memory. Writes
+docs/benchmarks/sweep_lanes.md, .json and .png (runs/s/core against width).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import resource
+import statistics
+import time
+from pathlib import Path
+
+from mta_sim_ros.validate import COUNT, number_arg, output_file, path_arg
+
+from ..common import header_lines, side_by_side, table, write_report
+
+HELP = "a sweep's run across SIMD lanes against alone: ms per run by batch width and carts"
+SCENE = "scenes/headland_turn.yaml"
+CARTS, WIDTHS = (2, 3, 5), (8, 64, 256)
+#: schemes run alone per round (the per-run cost does not depend on how many)
+ALONE = 8
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--rounds", type=number_arg(COUNT, int), default=3, help="rounds taken in turns (default 3)")
+    p.add_argument("--out", type=path_arg(output_file), default="docs/benchmarks/sweep_lanes.md", help="Markdown report")
+
+
+def schemes(scene, n: int, width: int) -> list:
+    """``width`` random trains of n carts on ``scene``."""
+    import numpy as np
+
+    from .lanes_rhs import random_train
+
+    rng = np.random.default_rng(20261206 + n)
+    return [dataclasses.replace(scene, train=random_train(n, rng)) for _ in range(width)]
+
+
+def worst_difference(alone: list, lanes: list) -> float:
+    """The largest relative difference of any metric but the position error between the runs."""
+    worst = 0.0
+    for a, b in zip(alone, lanes):
+        for name, want in a.metrics.items():
+            got = b.metrics[name]
+            if name != "position_error_m" and not (math.isnan(want) and math.isnan(got)):
+                worst = max(worst, abs(got - want) / abs(want) if want else abs(got))
+    return worst
+
+
+def measure(scene, rounds: int) -> dict:
+    from mta_sim_ros.run.batch import run_metrics, run_trace
+    from mta_sim_ros.run.lanes_batch import run_metrics_many, run_traces
+
+    figures: dict = {}
+    for n in CARTS:
+        batch = schemes(scene, n, max(WIDTHS))
+        few = batch[:ALONE]
+        run_metrics_many(batch[:2], fidelity="dynamic")  # compile (or load) before timing
+        diff = worst_difference([run_metrics(s, fidelity="dynamic") for s in few],
+                                run_metrics_many(few, fidelity="dynamic"))
+        variants = {"alone": lambda: [run_metrics(s, fidelity="dynamic") for s in few],
+                    "kernel alone": lambda: [run_trace(s, fidelity="dynamic", step=0.02) for s in few]}
+        for w in WIDTHS:
+            variants[f"lanes {w}"] = lambda w=w: run_metrics_many(batch[:w], fidelity="dynamic")
+            variants[f"kernel lanes {w}"] = lambda w=w: run_traces(batch[:w], fidelity="dynamic", step=0.02)
+        times = side_by_side(variants, rounds, clock=time.thread_time)
+        per_run = {label: statistics.median(t) * 1e3 / (ALONE if "alone" in label else int(label.split()[-1]))
+                   for label, t in times.items()}
+        figures[n] = {"ms": per_run, "worst_relative_difference": diff}
+        print(n, {k: round(v, 2) for k, v in per_run.items()}, f"worst {diff:.1e}", flush=True)
+    figures["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return figures
+
+
+def report(figures: dict) -> list[str]:
+    rows = []
+    for n in CARTS:
+        ms = figures[n]["ms"]
+        rows.append([n, "sweep's run", f"{ms['alone']:.2f}", *(
+            f"{ms[f'lanes {w}']:.2f} ({ms['alone'] / ms[f'lanes {w}']:.2f}x)" for w in WIDTHS),
+            f"{figures[n]['worst_relative_difference']:.1e}"])
+        rows.append([n, "kernel's run", f"{ms['kernel alone']:.2f}", *(
+            f"{ms[f'kernel lanes {w}']:.2f} ({ms['kernel alone'] / ms[f'kernel lanes {w}']:.2f}x)" for w in WIDTHS),
+            ""])
+    lines = ["", "## ms per run, alone and across lanes", "",
+             "A sweep's run: the step search, the run, its companion at half the step and the metrics. The "
+             "kernel's run: the run alone at 0.02 s, its trace and nothing else. Each row's figures taken in "
+             "turns; the ratio is alone over lanes.", ""]
+    lines += table(rows, ["carts", "what", "alone", *(f"{w} lanes" for w in WIDTHS),
+                          "largest metric difference"], "rllllr")
+    best = {n: 1e3 / min(figures[n]["ms"][f"lanes {w}"] for w in WIDTHS) for n in CARTS}
+    lines += ["", "Runs per second per core at the best width: " +
+              ", ".join(f"{best[n]:.0f} ({n} carts)" for n in CARTS) +
+              f". Peak memory of this process: {figures['peak_rss_mb']:.0f} MB.", ""]
+    return lines
+
+
+def chart(figures: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for n in CARTS:
+        ms = figures[n]["ms"]
+        line, = ax.plot(WIDTHS, [1e3 / ms[f"lanes {w}"] for w in WIDTHS], "o-", label=f"{n} carts, lanes")
+        ax.axhline(1e3 / ms["alone"], color=line.get_color(), ls=":", label=f"{n} carts, alone")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("schemes in the batch (lanes)")
+    ax.set_ylabel("sweep runs / s / core")
+    ax.set_title("headland turn, 70 s: a sweep's run")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main(args) -> int:
+    from mta_sim_ros.config import resolve_config_path
+    from mta_sim_ros.physics.loader import load_scene
+
+    scene = load_scene(resolve_config_path(SCENE))
+    figures = measure(scene, args.rounds)
+    lines = header_lines("Sweeps across SIMD lanes: a run's cost by batch width and carts", args) + report(figures)
+    lines += [f"![runs/s/core against the batch's width]({Path(args.out).with_suffix('.png').name})", ""]
+    write_report(args.out, lines)
+    Path(args.out).with_suffix(".json").write_text(json.dumps({str(k): v for k, v in figures.items()}, indent=1) + "\n")
+    chart(figures, Path(args.out).with_suffix(".png"))
+    return 0
