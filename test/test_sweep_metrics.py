@@ -229,3 +229,49 @@ def test_a_standstill_at_the_end_adds_nothing_beside_the_path():
         moving = qx[:51] < 10.0  # the corner beside the path while the path reaches past it
         assert at_end[51:].all() and not at_end[:51][moving].any()
         np.testing.assert_allclose(d[:51][moving], -1.0, atol=1e-12)  # 1 m right of the path
+
+
+def _extent_corner_by_corner(px, py, bend, bx, by, th, corners, start, a1, e0):
+    """outline_extent's figures as batch.metrics took them before it: each corner's beside_offsets
+    series, reduced by numpy (NaN left out)."""
+    left, right, reach = -math.inf, math.inf, -math.inf
+    for k in range(bx.shape[1]):
+        ex, ey = np.cos(th[:, k]), np.sin(th[:, k])
+        for along, across in corners[k]:
+            qx = np.ascontiguousarray(bx[:, k] + along * ex - across * ey)
+            qy = np.ascontiguousarray(by[:, k] + along * ey + across * ex)
+            d, at_end = offsets.beside_offsets(px, py, bend, qx, qy)
+            beside = d[~at_end & ~np.isnan(d)]
+            if beside.size:
+                left, right = max(left, float(beside.max())), min(right, float(beside.min()))
+            ahead = ((qx - a1[0]) * e0[0] + (qy - a1[1]) * e0[1])[start:]
+            if start >= 0 and (~np.isnan(ahead)).any():
+                reach = max(reach, float(np.nanmax(ahead)))
+    return left, right, reach
+
+
+@pytest.mark.parametrize("case", ["run", "a NaN row", "standing still", "never steers"])
+def test_the_outline_extent_is_each_corners_offsets_taken_one_by_one(case):
+    """offsets.outline_extent (one compiled pass over every corner of every cart: batch.metrics' swept
+    and headland widths) equals the corners' beside_offsets series taken one by one, compiled and as
+    plain Python, on a headland turn's trace with random corners."""
+    scene = loader.load_scene(resolve_config_path("scenes/headland_turn.yaml"))
+    _, trace, _, done, _ = batch.run_trace(scene, fidelity="dynamic")
+    n = scene.train.n
+    cart = trace[:done + 1:7, whole.TRACE_HEAD:].reshape(-1, n, whole.TRACE_CART)
+    bx, by, th = (np.ascontiguousarray(cart[:, :, c]) for c in (whole.TR_BX, whole.TR_BY, whole.TR_HEADING))
+    if case == "a NaN row":  # a cart's corners ahead of the turn, and the path beside some of them
+        th[150, :] = math.nan
+        bx[300, 0] = math.nan
+    if case == "standing still":
+        bx[:, 0], by[:, 0] = bx[0, 0], by[0, 0]
+    rng = np.random.default_rng(7)
+    corners = rng.uniform(-4.0, 4.0, (n, 6, 2))
+    start = -1 if case == "never steers" else 120
+    a1, e0 = rng.uniform(-5.0, 5.0, 2), np.array([math.cos(0.3), math.sin(0.3)])
+    px, py = bx[:, 0].copy(), by[:, 0].copy()
+    bend = offsets.arc_bends(px, py)
+    expected = _extent_corner_by_corner(px, py, bend, bx, by, th, corners, start, a1, e0)
+    assert math.isfinite(expected[0]) != (case == "standing still")
+    for extent in (offsets.outline_extent, offsets.outline_extent.py_func):
+        assert extent(px, py, bend, bx, by, th, corners, start, a1[0], a1[1], e0[0], e0[1]) == expected

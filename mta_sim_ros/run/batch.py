@@ -221,29 +221,23 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     out["min_grip_margin"] = float(np.min(grip_margins(train, trace[:, whole.TR_FRONT_LAT], cart[:, :, whole.TR_LAT])))
     path_x, path_y = np.ascontiguousarray(bx[:, 0]), np.ascontiguousarray(by[:, 0])
     distances = offsets.path_offsets if kernel_compiled() else offsets.path_offsets.py_func
-    walk = offsets.beside_offsets if kernel_compiled() else offsets.beside_offsets.py_func
+    extent = offsets.outline_extent if kernel_compiled() else offsets.outline_extent.py_func
     bend = (offsets.arc_bends if kernel_compiled() else offsets.arc_bends.py_func)(path_x, path_y)
-    left, right = -math.inf, math.inf
-    reach = -math.inf
     steer = np.flatnonzero(commands != 0.0)
     start = int(steer[0]) if steer.size else -1
     e0 = np.array([math.cos(th[0, 0]), math.sin(th[0, 0])])
+    a1 = np.zeros(2)
     if start >= 0:
         a1 = np.array([bx[start, 0], by[start, 0]]) + train.carts[0].length * np.array(
             [math.cos(th[start, 0]), math.sin(th[start, 0])])
+    corners = np.empty((n, 6, 2))
     for k in range(n):
-        ex, ey = np.cos(th[:, k]), np.sin(th[:, k])
         centre, length, width, _ = box_of(train, k)
-        for along in (centre + length / 2, centre - length / 2, 0.0):  # front and rear corners, the axle's ends
-            for across in (width / 2, -width / 2):
-                qx = np.ascontiguousarray(bx[:, k] + along * ex - across * ey)
-                qy = np.ascontiguousarray(by[:, k] + along * ey + across * ex)
-                d, at_end = walk(path_x, path_y, bend, qx, qy)
-                beside = d[~at_end]
-                if beside.size:
-                    left, right = max(left, float(beside.max())), min(right, float(beside.min()))
-                if start >= 0:
-                    reach = max(reach, float(((qx - a1[0]) * e0[0] + (qy - a1[1]) * e0[1])[start:].max()))
+        # front and rear corners, the axle's ends
+        corners[k] = [(along, across) for along in (centre + length / 2, centre - length / 2, 0.0)
+                      for across in (width / 2, -width / 2)]
+    left, right, reach = extent(path_x, path_y, bend, np.ascontiguousarray(bx), np.ascontiguousarray(by),
+                                np.ascontiguousarray(th), corners, start, a1[0], a1[1], e0[0], e0[1])
     out["swept_width_m"] = left - right if right < math.inf else math.nan
     out["headland_width_m"] = reach if start >= 0 else math.nan
     largest_angle, offtracks = 0.0, []
