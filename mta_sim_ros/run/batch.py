@@ -128,13 +128,25 @@ def continue_run(sim: Simulation, trace, commands, v_sets, max_rates, y, done: i
             except ModelValidityError as err:  # the failing tick is not part of the run (as in run_scene)
                 trace[done] = np.nan
                 sim.ticks = done - 1
-                return done - 1, err
+                return done - 1, detached(err)
         if done >= commands.shape[0]:
             return done, None
         y, done, nfev, kinks = run(model.P, model.P_outputs, stepper.tableau.packed, y, commands, v_sets, max_rates,
                                    sim.tick, stepper.step, stepper.split_kinks, done, trace)
         stepper.nfev += nfev
         stepper.kinks += kinks
+
+
+def detached(err: BaseException) -> BaseException:
+    """``err`` (and the exceptions it was raised from) without its traceback, to be kept as a value: a
+    traceback holds the frames it passed, with their locals (a batch's traces), and, through the
+    frames, the list the error is kept in: a cycle that only the garbage collector frees, late."""
+    chain, link = set(), err
+    while link is not None and id(link) not in chain:
+        chain.add(id(link))
+        link.__traceback__ = None
+        link = link.__cause__ or link.__context__
+    return err
 
 
 def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Exception | None]:
@@ -158,7 +170,7 @@ def _tick_by_tick(sim: Simulation, commands, v_sets, trace) -> tuple[int, Except
         try:
             sim.advance(float(commands[i]), float(v_sets[i]))
         except (ModelValidityError, IntegrationError) as err:
-            return i, err
+            return i, detached(err)
         row(sim.outputs(), i + 1)
     return commands.shape[0], None
 

@@ -23,7 +23,7 @@ from ..physics.guards import ModelValidityError
 from ..validate import InputError
 from . import whole, whole_lanes
 from .accuracy import settling
-from .batch import continue_run, result_of, run_trace, scheduled_inputs
+from .batch import continue_run, detached, result_of, run_trace, scheduled_inputs
 from .simulation import Simulation
 
 MATHS = ("vmath", "libm")
@@ -71,7 +71,7 @@ def run_each(requests, math: str = "vmath", trace_bytes: int = TRACE_BYTES) -> l
         try:
             sims[i] = Simulation(scene, **options)
         except REFUSALS as err:
-            out[i] = err
+            out[i] = detached(err)
             continue
         inputs[i] = scheduled_inputs(scene, sims[i])
         groups.setdefault(lane_key(sims[i], inputs[i][0].shape[0]), []).append(i)
@@ -106,26 +106,35 @@ def settle_many(scenes, math: str = "vmath", **options) -> list:
         try:
             requests[i] = next(search)
         except REFUSALS as err:
-            out[i] = err
+            out[i] = detached(err)
     while requests:
-        order = list(requests)
-        runs = run_each([(scenes[i], requests[i]) for i in order], math)
-        requests = {}
-        for i, run in zip(order, runs):
-            if isinstance(run, Exception) and not isinstance(run, InputError):
-                out[i] = run  # alone, it would leave settle as it is
-                continue
-            try:
-                try:
-                    if isinstance(run, InputError):  # the search decides: it gives up on that run, or raises
-                        requests[i] = searches[i].throw(run)
-                    else:
-                        requests[i] = searches[i].send(run)
-                except StopIteration as answer:
-                    out[i] = answer.value
-            except REFUSALS as err:
-                out[i] = err
+        requests = _round(scenes, searches, requests, math, out)
     return out
+
+
+def _round(scenes, searches, requests: dict, math: str, out: list) -> dict:
+    """One round of ``settle_many``: the runs ``requests`` asks for (scene index -> options), run as
+    batches and sent to their searches; returns the next round's requests (a search that ends puts
+    its answer in ``out``). A function of its own so that the round's runs are let go of when it
+    returns: a search keeps only what it needs (its best run), not the round's companions."""
+    order = list(requests)
+    runs = run_each([(scenes[i], requests[i]) for i in order], math)
+    following = {}
+    for i, run in zip(order, runs):
+        if isinstance(run, Exception) and not isinstance(run, InputError):
+            out[i] = run  # alone, it would leave settle as it is
+            continue
+        try:
+            try:
+                if isinstance(run, InputError):  # the search decides: it gives up on that run, or raises
+                    following[i] = searches[i].throw(run)
+                else:
+                    following[i] = searches[i].send(run)
+            except StopIteration as answer:
+                out[i] = answer.value
+        except REFUSALS as err:
+            out[i] = detached(err)
+    return following
 
 
 def run_metrics_many(scenes, math: str = "vmath", keep_traces: bool = False, trace_bytes: int = TRACE_BYTES,
@@ -144,10 +153,15 @@ def run_metrics_many(scenes, math: str = "vmath", keep_traces: bool = False, tra
         size = lanes_for(first, int(first.duration * first.publish_rate + 1e-9), trace_bytes)
         for start in range(0, len(members), size):
             some = members[start:start + size]
-            chunk = [scenes[i] for i in some]
-            for i, scene, settled in zip(some, chunk, settle_many(chunk, math, **options)):
-                out[i] = _result(scene, settled, keep_traces)
+            for i, result in zip(some, _results([scenes[i] for i in some], math, keep_traces, options)):
+                out[i] = result
     return out
+
+
+def _results(chunk, math, keep_traces, options) -> list:
+    """The RunResults (or refusals) of a chunk of scenes: its runs' traces are let go of on return
+    (a name left bound to the last one would hold its whole batch's block into the next chunk)."""
+    return [_result(scene, settled, keep_traces) for scene, settled in zip(chunk, settle_many(chunk, math, **options))]
 
 
 def _result(scene, settled, keep_trace: bool):
@@ -157,7 +171,7 @@ def _result(scene, settled, keep_trace: bool):
     try:
         result = result_of(scene, *settled)
     except REFUSALS as err:
-        return err
+        return detached(err)
     return result if keep_trace else dataclasses.replace(result, trace=None)
 
 
