@@ -13,7 +13,9 @@ For each number of carts and batch width, side by side in turns (thread CPU time
   each scheme against ``lanes_batch.run_traces`` of the batch (vmath).
 
 ms per run and runs/s/core; the largest relative difference of any metric between the two (the
-position error apart, whose round-off is absolute); the process's peak memory. Writes
+position error apart, whose round-off is absolute). A sweep worker's memory: for each number of
+carts and a task's width (``MEMORY_WIDTHS`` runs), a fresh process (``worker_memory``) runs them
+through ``run_metrics_many`` and reports its resident memory before and its peak. Writes
 docs/benchmarks/sweep_lanes.md, .json and .png (runs/s/core against width).
 """
 from __future__ import annotations
@@ -35,6 +37,8 @@ SCENE = "scenes/headland_turn.yaml"
 CARTS, WIDTHS = (2, 3, 5), (8, 64, 256)
 #: schemes run alone per round (the per-run cost does not depend on how many)
 ALONE = 8
+#: a task's runs (a sweep's ``batch:``) whose worker's memory is measured
+MEMORY_WIDTHS = (64, 256, 1024)
 
 
 def add_arguments(p) -> None:
@@ -85,7 +89,45 @@ def measure(scene, rounds: int) -> dict:
         figures[n] = {"ms": per_run, "worst_relative_difference": diff}
         print(n, {k: round(v, 2) for k, v in per_run.items()}, f"worst {diff:.1e}", flush=True)
     figures["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    figures["memory"] = {f"{n} {w}": measure_memory(n, w) for n in CARTS for w in MEMORY_WIDTHS}
     return figures
+
+
+def measure_memory(n: int, width: int) -> dict:
+    """``worker_memory(n, width)`` in a fresh process: {"before": MB, "peak": MB}."""
+    import subprocess
+    import sys
+
+    code = f"from benchmarks.throughput.sweep_lanes import worker_memory; worker_memory({n}, {width})"
+    done = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[2], check=True,
+                          capture_output=True, text=True)
+    figures = json.loads(done.stdout.strip().splitlines()[-1])
+    print(f"memory {n} carts, {width} runs: {figures}", flush=True)
+    return figures
+
+
+def worker_memory(n: int, width: int) -> None:
+    """What a sweep worker holds for a task of ``width`` headland runs of n carts: its resident memory
+    (MB) once the kernels are loaded (two runs done) and its peak after the task, printed as JSON."""
+    from mta_sim_ros.config import resolve_config_path
+    from mta_sim_ros.physics.loader import load_scene
+    from mta_sim_ros.run.lanes_batch import run_metrics_many
+
+    batch = schemes(load_scene(resolve_config_path(SCENE)), n, width)
+    run_metrics_many(batch[:2], fidelity="dynamic")
+    before = resident("VmRSS")
+    run_metrics_many(batch, fidelity="dynamic")
+    print(json.dumps({"before": before, "peak": resident("VmHWM")}))
+
+
+def resident(field: str) -> float:
+    """This process's resident memory (``VmRSS``) or its peak (``VmHWM``), MB, from /proc/self/status.
+    Not getrusage's ru_maxrss: Linux keeps that across fork and exec, so a child started by a big
+    process reports its parent's peak."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024
+    raise OSError(f"/proc/self/status has no {field}")
 
 
 def report(figures: dict) -> list[str]:
@@ -107,7 +149,17 @@ def report(figures: dict) -> list[str]:
     best = {n: 1e3 / min(figures[n]["ms"][f"lanes {w}"] for w in WIDTHS) for n in CARTS}
     lines += ["", "Runs per second per core at the best width: " +
               ", ".join(f"{best[n]:.0f} ({n} carts)" for n in CARTS) +
-              f". Peak memory of this process: {figures['peak_rss_mb']:.0f} MB.", ""]
+              f". Peak memory of this process (every variant, the runs alone included): "
+              f"{figures['peak_rss_mb']:.0f} MB.", ""]
+    memory = figures["memory"]
+    lines += ["## A sweep worker's memory", "",
+              "A fresh process runs a task of so many headland runs through `run_metrics_many` (what a sweep "
+              "worker does with a task of `batch:` runs): its resident memory once the kernels are loaded, and "
+              "its peak (MB).", ""]
+    lines += table([[n, *(f"{memory[f'{n} {w}']['before']:.0f} / {memory[f'{n} {w}']['peak']:.0f}"
+                          for w in MEMORY_WIDTHS)] for n in CARTS],
+                   ["carts", *(f"{w} runs: before / peak" for w in MEMORY_WIDTHS)], "r" + "r" * len(MEMORY_WIDTHS))
+    lines += [""]
     return lines
 
 
