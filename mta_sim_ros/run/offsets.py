@@ -1,14 +1,21 @@
 """Distances of points from a path, compiled and exact: the off-tracking and swept width of a run
 (``batch.metrics``).
 
-The path is the samples p_0..p_{m-1} joined piece by piece: by chords (a polyline, ``curved``
-False: mta analyze's path, analysis.track_geometry.distance_to_path) or by circular arcs (``curved``
-True: each piece bends by the mean of the curvatures of the circles through its ends' sample
-triples, so samples on a circle give that circle, not its chords). Each point's nearest piece is
-found by branch and bound over a tree of the pieces' bounding boxes (index ranges halved, each box
-grown by its arcs' sagittas): a box farther than the best piece so far is passed over, so the search
-is exact wherever the path comes back near itself, and cheap where it does not (the piece nearest
-the point before is the first bound).
+The path is the samples p_0..p_{m-1} joined piece by piece: by chords (a polyline: mta analyze's
+path, analysis.track_geometry.distance_to_path; ``path_offsets``) or by circular arcs (each piece
+bends by the mean of the curvatures of the circles through its ends' sample triples, so samples on
+a circle give that circle, not its chords; ``arc_bends``, ``beside_offsets``, ``outline_extent``).
+
+``path_offsets`` finds each point's nearest piece by branch and bound over a tree of the pieces'
+bounding boxes (index ranges halved): a box farther than the best piece so far is passed over, so the
+search is exact wherever the path comes back near itself, and cheap where it does not (the piece
+nearest the point before is the first bound). ``beside_offsets`` walks on from the piece the point
+before was beside (a corner of a cart moving along the tractor's path), and ``outline_extent`` takes
+the extremes of that walk for every corner of every cart in one call.
+
+The loops over points call only functions of numbers (``piece_distance``, ``shaped_distance``,
+``box_distance2``, ``norm``): an array handed to a function inside the loop costs numba's reference
+counting at every call, more than the arithmetic.
 """
 from __future__ import annotations
 
