@@ -61,7 +61,9 @@ def beside_offsets(px, py, bend, qx, qy):
     whether its nearest point is an end of the path). The points are taken in order, each searched
     from the piece nearest the point before, walking on while the next piece is not farther: a
     point that moves along the path (a cart's corner along the tractor's path) finds the piece it
-    is beside, and a path that comes back near itself (a U-turn's other leg) is not taken for it."""
+    is beside, and a path that comes back near itself (a U-turn's other leg) is not taken for it.
+    (batch.metrics takes the extremes of this walk for every corner at once, ``outline_extent``; the
+    tests hold that to this per-point form.)"""
     count = qx.shape[0]
     out = np.empty(count)
     at_end = np.ones(count, dtype=np.bool_)
