@@ -198,5 +198,10 @@ def test_a_stopped_run_lets_its_batch_go_without_the_garbage_collector():
         trace = weakref.ref(alone[1])
         del runs, stopped, alone
         assert block() is None and trace() is None
+        folded = next(sc for sc in scenes if run_trace(sc, method="RK45", fidelity="dynamic")[4] is not None)
+        tick_by_tick = run_trace(folded, method="RK45", fidelity="dynamic")  # an adaptive method: no whole-run kernel
+        assert tick_by_tick[4].__traceback__ is None
+        refused = lanes_batch.run_each([(scenes[0], {"method": "rk5"})])[0]
+        assert isinstance(refused, REFUSALS) and refused.__traceback__ is None
     finally:
         gc.enable()

@@ -238,9 +238,9 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
     steer = np.flatnonzero(commands != 0.0)
     start = int(steer[0]) if steer.size else -1
     e0 = np.array([math.cos(th[0, 0]), math.sin(th[0, 0])])
-    a1 = np.zeros(2)
+    steered_at = np.zeros(2)  # A_1 at the first tick the scene steers
     if start >= 0:
-        a1 = np.array([bx[start, 0], by[start, 0]]) + train.carts[0].length * np.array(
+        steered_at = np.array([bx[start, 0], by[start, 0]]) + train.carts[0].length * np.array(
             [math.cos(th[start, 0]), math.sin(th[start, 0])])
     corners = np.empty((n, 6, 2))
     for k in range(n):
@@ -249,7 +249,7 @@ def metrics(train, trace: np.ndarray, tick: float, commands: np.ndarray) -> dict
         corners[k] = [(along, across) for along in (centre + length / 2, centre - length / 2, 0.0)
                       for across in (width / 2, -width / 2)]
     left, right, reach = extent(path_x, path_y, bend, np.ascontiguousarray(bx), np.ascontiguousarray(by),
-                                np.ascontiguousarray(th), corners, start, a1[0], a1[1], e0[0], e0[1])
+                                np.ascontiguousarray(th), corners, start, steered_at[0], steered_at[1], e0[0], e0[1])
     out["swept_width_m"] = left - right if right < math.inf else math.nan
     out["headland_width_m"] = reach if start >= 0 else math.nan
     largest_angle, offtracks = 0.0, []

@@ -14,9 +14,10 @@ the guard lets it go on. The trace rows are ``whole.trace_row``'s, every lane at
 Arrays: P and P_out (len, L) the stacked constants of the model and of its outputs
 (packing.stack), P_rows (L, len) each lane's P in a row (the scalar calls read it), y (size, L),
 commands, v_sets, max_rates (ticks, L), traces (L, ticks + 1, width): each lane's trace as
-``whole.run`` writes it (a tick's rows are made across lanes in a (width, L) buffer and copied in). ``runner_with`` binds the batch's stepper, switching functions and trace: with the C
-library's math (``run_lanes_libm``) every lane's trace is ``whole.run``'s bit for bit
-(test/test_whole_lanes.py), with vmath's (``run_lanes``) within the issue's bound."""
+``whole.run`` writes it (a tick's rows are made across lanes in a (width, L) buffer and copied in).
+``runner_with`` binds the batch's stepper, switching functions and trace: with the C library's math
+(``run_lanes_libm``) every lane's trace is ``whole.run``'s bit for bit (test/test_whole_lanes.py),
+with vmath's (``run_lanes``) within the issue's bound."""
 from __future__ import annotations
 
 import math
