@@ -12,6 +12,10 @@ For each number of carts and batch width, side by side in turns (thread CPU time
 - the kernel's part alone: the run at 0.02 s without metrics or companion, ``batch.run_trace`` of
   each scheme against ``lanes_batch.run_traces`` of the batch (vmath).
 
+- the floor (benchmarks/throughput/sweep_floor.py): the run's rk4 steps and nothing else, in C
+  (run_floor.c, built here by gcc where there is one: one scheme at a time, and eight a vector with
+  glibc's vector math) and in the kernel (one scheme at a time, and across the batch).
+
 ms per run and runs/s/core; the largest relative difference of any metric between the two (the
 position error apart, whose round-off is absolute). A sweep worker's memory: for each number of
 carts and a task's width (``MEMORY_WIDTHS`` runs), a fresh process (``worker_memory``) runs them
@@ -67,9 +71,13 @@ def worst_difference(alone: list, lanes: list) -> float:
     return worst
 
 
-def measure(scene, rounds: int) -> dict:
+def measure(scene, rounds: int, floor: dict) -> dict:
+    """ms per run of every variant, by carts (in turns, thread CPU), with ``floor`` (sweep_floor.build's
+    libraries, or none): the run's steps alone, in the kernel and in C."""
     from mta_sim_ros.run.batch import run_metrics, run_trace
     from mta_sim_ros.run.lanes_batch import run_metrics_many, run_traces
+
+    from .sweep_floor import variants as floor_variants
 
     figures: dict = {}
     for n in CARTS:
@@ -83,10 +91,12 @@ def measure(scene, rounds: int) -> dict:
         for w in WIDTHS:
             variants[f"lanes {w}"] = lambda w=w: run_metrics_many(batch[:w], fidelity="dynamic")
             variants[f"kernel lanes {w}"] = lambda w=w: run_traces(batch[:w], fidelity="dynamic", step=0.02)
+        steps, checks = floor_variants(floor, batch, ALONE, WIDTHS)
+        variants.update({label: call for label, (call, _) in steps.items()})
         times = side_by_side(variants, rounds, clock=time.thread_time)
         per_run = {label: statistics.median(t) * 1e3 / (ALONE if "alone" in label else int(label.split()[-1]))
                    for label, t in times.items()}
-        figures[n] = {"ms": per_run, "worst_relative_difference": diff}
+        figures[n] = {"ms": per_run, "worst_relative_difference": diff, "floor_checks": checks}
         print(n, {k: round(v, 2) for k, v in per_run.items()}, f"worst {diff:.1e}", flush=True)
     figures["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     figures["memory"] = {f"{n} {w}": measure_memory(n, w) for n in CARTS for w in MEMORY_WIDTHS}
@@ -174,6 +184,9 @@ def chart(figures: dict, path: Path) -> None:
         ms = figures[n]["ms"]
         line, = ax.plot(WIDTHS, [1e3 / ms[f"lanes {w}"] for w in WIDTHS], "o-", label=f"{n} carts, lanes")
         ax.axhline(1e3 / ms["alone"], color=line.get_color(), ls=":", label=f"{n} carts, alone")
+        if "C lanes 8" in ms:  # the floor under a sweep's run: its three runs' steps in C across lanes
+            ax.plot(WIDTHS, [1e3 / (3 * ms[f"C lanes {w}"]) for w in WIDTHS], "s--", color=line.get_color(), lw=0.8,
+                    label=f"{n} carts, C floor (3 runs' steps)")
     ax.set_xscale("log", base=2)
     ax.set_xlabel("schemes in the batch (lanes)")
     ax.set_ylabel("sweep runs / s / core")
@@ -187,9 +200,18 @@ def main(args) -> int:
     from mta_sim_ros.config import resolve_config_path
     from mta_sim_ros.physics.loader import load_scene
 
+    import tempfile
+
+    from .sweep_floor import build
+    from .sweep_floor import report as floor_report
+
     scene = load_scene(resolve_config_path(SCENE))
-    figures = measure(scene, args.rounds)
+    with tempfile.TemporaryDirectory() as tmp:
+        floor, how = build(Path(tmp))
+        figures = measure(scene, args.rounds, floor)
+    figures["floor_built"] = how
     lines = header_lines("Sweeps across SIMD lanes: a run's cost by batch width and carts", args) + report(figures)
+    lines += floor_report(figures, CARTS, WIDTHS)
     lines += [f"![runs/s/core against the batch's width]({Path(args.out).with_suffix('.png').name})", ""]
     write_report(args.out, lines)
     Path(args.out).with_suffix(".json").write_text(json.dumps({str(k): v for k, v in figures.items()}, indent=1) + "\n")
