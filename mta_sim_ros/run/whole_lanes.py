@@ -30,8 +30,10 @@ from ..jit import jitable, lanes
 from ..physics.kernel.base import FORCE_SWITCHES, HIGH, KINEMATIC, LOW, NATURAL, H
 from ..physics.kernel.batched import WORK_ROWS, switches_lanes, switches_lanes_libm
 from ..physics.kernel.laws import actuator_release
-from ..physics.kernel.motion import clear, model_rhs, switches
+from ..physics.kernel.motion import GUARD_SLACK, model_rhs, switches
+from ..physics.kernel.relief import off_relief
 from .trace_lanes import trace_arrays, trace_lanes, trace_lanes_libm
+from .whole import TR_MARGIN
 
 
 @jitable
@@ -105,24 +107,35 @@ def redo_alone(P_rows, T, y, t0, t1, count, command, v_set, max_rate, max_step, 
 
 
 @jitable
-def stop_lanes(P_rows, y, i, done, lane):
+def stop_lanes(P_rows, y, i, done, lane, rows):
     """Each running lane whose state after tick i is not ``clear`` stops there (its ``done``, its
-    state kept in ``last``). Returns whether a lane is still running."""
+    state kept in ``last``). Returns whether a lane is still running.
+
+    ``clear`` across lanes: the jackknife margin is the one the tick's trace row has just computed
+    (rows[TR_MARGIN]: ``outputs``' smallest hitch margin, from the same hitch angles and chain angles
+    psi_k as ``motion.margin``, in the same order, so with the C library's math the same bits), not
+    walked again lane by lane; a height grid (never batched: packing.stack) is asked lane by lane."""
     _, last, _, _, _, _, _, _, _, active, _, _, lane_y = lane
     size, L = y.shape[0], y.shape[1]
+    relief = P_rows[0, H.relief] != 0.0
     running = False
     for j in range(L):
         if not active[j]:
             continue
+        ok = rows[TR_MARGIN, j] > GUARD_SLACK
         for m in range(size):
-            lane_y[m] = y[m, j]
-        if clear(P_rows[j], lane_y):
+            ok &= math.isfinite(y[m, j])
+        if ok and relief:
+            for m in range(size):
+                lane_y[m] = y[m, j]
+            ok = off_relief(P_rows[j], lane_y) < 0
+        if ok:
             running = True
         else:
             active[j] = False
             done[j] = i + 1
             for m in range(size):
-                last[m, j] = lane_y[m]
+                last[m, j] = y[m, j]
     return running
 
 
@@ -192,7 +205,7 @@ def runner_with(step_lanes, switches_of, trace_of):
                 if active[j]:  # a lane that has stopped keeps its trace as it stopped
                     for c in range(rows.shape[0]):
                         traces[j, i + 1, c] = rows[c, j]
-            if not stop_lanes(P_rows, y, i, done, lane):
+            if not stop_lanes(P_rows, y, i, done, lane, rows):
                 break
         for j in range(y.shape[1]):
             if active[j]:
