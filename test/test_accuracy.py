@@ -193,3 +193,38 @@ def test_a_slip_level_run_is_not_searched_for_a_step():
     run, stated = accuracy.settle(scene, fidelity="slip")
     assert run[0].level == "slip" and run[0].step == run[0].tick
     assert stated.how == f"rtol, atol / {accuracy.TIGHTER:g}" and stated.error > 0
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_distance_is_the_points_norm_to_the_bit(compiled):
+    """accuracy.distance (compiled: whole.points_apart) equals the largest np.linalg.norm of the
+    difference of ``accuracy.points``, bit for bit, on random traces of 1-5 carts with NaN and inf
+    rows, traces of different lengths, and none finite (NaN)."""
+    from mta_sim_ros.run import whole
+
+    rng = np.random.default_rng(5)
+    apart = whole.points_apart if compiled else whole.points_apart.py_func
+    for case in range(60):
+        train = trains.train(1 + case % 5)
+        width = whole.TRACE_HEAD + whole.TRACE_CART * train.n
+        a = rng.normal(0.0, 50.0, (rng.integers(1, 40), width))
+        rows_b = int(rng.integers(1, 40))
+        near = np.vstack([a, rng.normal(0.0, 50.0, (40, width))])[:rows_b]  # b the same run nearly, or another
+        b = near + rng.normal(0.0, 10.0 ** -rng.integers(3, 12), near.shape) if case % 3 else \
+            rng.normal(0.0, 50.0, (rows_b, width))
+        if case % 4 == 1:
+            a[rng.integers(0, a.shape[0])] = np.nan
+        if case % 7 == 2:
+            b[rng.integers(0, b.shape[0]), rng.integers(0, width)] = np.inf
+        if case == 9:
+            a[:] = np.nan
+        rows = min(a.shape[0], b.shape[0])
+        d = np.linalg.norm(accuracy.points(train, a[:rows]) - accuracy.points(train, b[:rows]), axis=2)
+        d = d[np.isfinite(d)]
+        want = float(d.max()) if d.size else math.nan
+        lengths = np.array([c.length for c in train.carts])
+        got = apart(np.ascontiguousarray(a), np.ascontiguousarray(b), rows, lengths,
+                    float(train.carts[-1].hitch_offset))
+        assert (math.isnan(want) and math.isnan(got)) or np.float64(got).view(np.int64) == np.float64(want).view(np.int64), \
+            (case, got, want)
+    assert math.isnan(accuracy.distance(trains.train(2), np.full((3, 17), np.nan), np.zeros((3, 17))))

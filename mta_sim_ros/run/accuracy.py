@@ -90,11 +90,14 @@ def points_of(train, bx: np.ndarray, by: np.ndarray, th: np.ndarray) -> np.ndarr
 
 
 def distance(train, a: np.ndarray, b: np.ndarray) -> float:
-    """The largest distance between the same point of two traces, over the rows both ran."""
-    rows = min(a.shape[0], b.shape[0])
-    d = np.linalg.norm(points(train, a[:rows]) - points(train, b[:rows]), axis=2)
-    d = d[np.isfinite(d)]
-    return float(d.max()) if d.size else math.nan  # no row both ran with finite points: no estimate
+    """The largest distance between the same point (``points``) of two traces, over the rows both ran;
+    NaN where no row both ran has finite points (no estimate). Compiled (whole.points_apart)."""
+    from .batch import kernel_compiled
+
+    apart = whole.points_apart if kernel_compiled() else whole.points_apart.py_func
+    lengths = np.array([c.length for c in train.carts], dtype=np.float64)
+    return float(apart(np.ascontiguousarray(a), np.ascontiguousarray(b), min(a.shape[0], b.shape[0]), lengths,
+                       float(train.carts[-1].hitch_offset)))
 
 
 def companion(sim, options: dict) -> tuple[dict, float, str]:

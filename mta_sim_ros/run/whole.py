@@ -2,6 +2,8 @@
 ``Simulation.advance`` steps it, and one trace row a tick of what the metrics read."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..integrate.rk import advance_in, workspace
@@ -71,3 +73,34 @@ def run(P, P_out, T, y0, commands, v_sets, max_rates, tick, max_step, split, sta
         if not clear(P, y):
             return y, i + 1, nfev, kinks
     return y, commands.shape[0], nfev, kinks
+
+
+@entry
+def points_apart(a, b, rows, lengths, offset):
+    """The largest distance between the same point of two runs' traces a and b over their rows
+    0..rows - 1, NaN where no such distance is finite (accuracy.distance): every hitch A_k = B_k + l_k
+    e_k and axle centre B_k (``lengths``: l_k) and the last rear hitch B_n - a_n e_n (``offset``: a_n),
+    e_k = (cos th_k, sin th_k), each distance sqrt(dx^2 + dy^2) (accuracy.points_of and numpy's norm,
+    operation for operation)."""
+    n = lengths.shape[0]
+    best = -math.inf
+    for i in range(rows):
+        for k in range(n):
+            j = TRACE_HEAD + TRACE_CART * k
+            pa = (a[i, j + TR_BX], a[i, j + TR_BY], math.cos(a[i, j + TR_HEADING]), math.sin(a[i, j + TR_HEADING]))
+            pb = (b[i, j + TR_BX], b[i, j + TR_BY], math.cos(b[i, j + TR_HEADING]), math.sin(b[i, j + TR_HEADING]))
+            best = farther(best, pa[0] + lengths[k] * pa[2], pa[1] + lengths[k] * pa[3],
+                           pb[0] + lengths[k] * pb[2], pb[1] + lengths[k] * pb[3])  # A_k
+            best = farther(best, pa[0], pa[1], pb[0], pb[1])  # B_k
+            if k == n - 1:
+                best = farther(best, pa[0] - offset * pa[2], pa[1] - offset * pa[3], pb[0] - offset * pb[2],
+                               pb[1] - offset * pb[3])
+    return best if best > -math.inf else math.nan
+
+
+@jitable
+def farther(best, ax, ay, bx, by):
+    """The larger of ``best`` and |(ax, ay) - (bx, by)|, a distance that is not finite left out."""
+    dx, dy = ax - bx, ay - by
+    d = math.sqrt(dx * dx + dy * dy)
+    return d if math.isfinite(d) and d > best else best
