@@ -16,9 +16,10 @@ import math
 
 import numpy as np
 
-from ..jit import jitable
+from ..jit import inlined, jitable
 from ..physics.kernel.base import CART_SIZE, HEAD_SIZE, KAPB, KAPB_DOT, KAPT, KAPT_DOT, PSI, REC, RES, C, H, pymin, wrap_angle
 from ..physics.kernel.batched import TRACTION_OUT, WORK_ROWS, rhs_lanes, rhs_lanes_libm
+from ..physics.kernel.vmath import pick
 from ..physics.kernel.walk import LIBM, VMATH, accelerations, hitch_margin, in_plane, towed_pull
 from .whole import TR_BX, TR_BY, TR_FRONT_LAT, TR_HEADING, TR_LAT, TR_MARGIN, TR_PHI, TR_PULL, TR_SPEED, TR_STEERING, \
     TR_TRACTION, TRACE_CART, TRACE_HEAD
@@ -61,33 +62,43 @@ def tracer_with(rhs_lanes_fn, walk):
     @jitable
     def pulls(P, y, dy, rec, work, frame, out):
         """The pull and the lateral force at each hitch and axle (``drawbar_pulls``' walk from the
-        last cart forward)."""
+        last cart forward: the towed carts, then the tractor). Each loop over lanes is straight-line
+        code (a tilted plane's gravity picked, not branched on), so that LLVM vectorises it."""
         n, L = int(P[H.n, 0]), y.shape[1]
         sloped = P[H.slope, 0] != 0.0
         for j in range(L):
             frame[F_HX, j], frame[F_HY, j] = 0.0, 0.0
-        for k in range(n - 1, -1, -1):
+        for k in range(n - 1, 0, -1):
             b = HEAD_SIZE + CART_SIZE * k
             col = TRACE_HEAD + TRACE_CART * k
             for j in range(L):
-                V, com = y[n + 3, j], P[b + C.com_offset, j]
-                ey, ex = sincos(y[2 + k, j])
-                rate_dot, a_e, a_n = accelerations(rec[k, KAPT_DOT, j], rec[k, KAPT, j], rec[k, KAPB_DOT, j],
-                                                   rec[k, KAPB, j], V, dy[n + 3, j], com, rec[k, KAPB, j] * V,
-                                                   rec[k, KAPT, j] * V)
-                if sloped:
-                    a_e, a_n = in_plane(a_e, a_n, ex, ey, P[H.gravity_x, j], P[H.gravity_y, j])
-                if k == 0:
-                    lat, front, pull = tractor_forces(frame[F_HX, j], frame[F_HY, j], ex, ey, P[b + C.mass, j], a_n,
-                                                      P[b + C.inertia, j], rate_dot, P[b + C.hitch_offset, j], com,
-                                                      P[b + C.length, j], work[TRACTION_OUT, j], y[n + 2, j])
-                    out[col + TR_LAT, j], out[TR_FRONT_LAT, j], out[col + TR_PULL, j] = lat, front, pull
-                else:
-                    pull, lat, hx, hy = towed_pull(frame[F_HX, j], frame[F_HY, j], ex, ey, rec[k, RES, j],
-                                                   P[b + C.mass, j], a_e, a_n, P[b + C.inertia, j], rate_dot, com,
-                                                   P[b + C.hitch_offset, j], P[b + C.length, j])
-                    out[col + TR_PULL, j], out[col + TR_LAT, j] = pull, lat
-                    frame[F_HX, j], frame[F_HY, j] = hx, hy
+                ex, ey, rate_dot, a_e, a_n = cart_motion(
+                    y[2 + k, j], y[n + 3, j], dy[n + 3, j], rec[k, KAPT_DOT, j], rec[k, KAPT, j], rec[k, KAPB_DOT, j],
+                    rec[k, KAPB, j], P[b + C.com_offset, j], P[H.gravity_x, j], P[H.gravity_y, j], sloped)
+                pull, lat, hx, hy = towed_pull(frame[F_HX, j], frame[F_HY, j], ex, ey, rec[k, RES, j],
+                                               P[b + C.mass, j], a_e, a_n, P[b + C.inertia, j], rate_dot,
+                                               P[b + C.com_offset, j], P[b + C.hitch_offset, j], P[b + C.length, j])
+                out[col + TR_PULL, j], out[col + TR_LAT, j] = pull, lat
+                frame[F_HX, j], frame[F_HY, j] = hx, hy
+        b = HEAD_SIZE
+        for j in range(L):
+            ex, ey, rate_dot, a_e, a_n = cart_motion(
+                y[2, j], y[n + 3, j], dy[n + 3, j], rec[0, KAPT_DOT, j], rec[0, KAPT, j], rec[0, KAPB_DOT, j],
+                rec[0, KAPB, j], P[b + C.com_offset, j], P[H.gravity_x, j], P[H.gravity_y, j], sloped)
+            lat, front, pull = tractor_forces(frame[F_HX, j], frame[F_HY, j], ex, ey, P[b + C.mass, j], a_n,
+                                              P[b + C.inertia, j], rate_dot, P[b + C.hitch_offset, j],
+                                              P[b + C.com_offset, j], P[b + C.length, j], work[TRACTION_OUT, j],
+                                              y[n + 2, j])
+            out[TRACE_HEAD + TR_LAT, j], out[TR_FRONT_LAT, j], out[TRACE_HEAD + TR_PULL, j] = lat, front, pull
+
+    @inlined
+    def cart_motion(heading, V, acceleration, kapT_dot, kapT, kapB_dot, kapB, com, gravity_x, gravity_y, sloped):
+        """(e_k, th''_k, a_e, a_n) of a cart (``accelerations``; on a tilted plane ``in_plane``), on
+        numbers (an array handed to an inlined function keeps LLVM from vectorising the loop)."""
+        ey, ex = sincos(heading)
+        rate_dot, a_e, a_n = accelerations(kapT_dot, kapT, kapB_dot, kapB, V, acceleration, com, kapB * V, kapT * V)
+        tilted_e, tilted_n = in_plane(a_e, a_n, ex, ey, gravity_x, gravity_y)
+        return ex, ey, rate_dot, pick(sloped, tilted_e, a_e), pick(sloped, tilted_n, a_n)
 
     @jitable
     def trace_lanes(P_out, y, commands, law_inputs, max_rates, dy, rec, mode, work, frame, out):
