@@ -72,8 +72,9 @@ def tracer_with(rhs_lanes_fn, walk):
             b = HEAD_SIZE + CART_SIZE * k
             col = TRACE_HEAD + TRACE_CART * k
             for j in range(L):
-                ex, ey, rate_dot, a_e, a_n = cart_motion(
-                    y[2 + k, j], y[n + 3, j], dy[n + 3, j], rec[k, KAPT_DOT, j], rec[k, KAPT, j], rec[k, KAPB_DOT, j],
+                ey, ex = sincos(y[2 + k, j])
+                rate_dot, a_e, a_n = cart_motion(
+                    ex, ey, y[n + 3, j], dy[n + 3, j], rec[k, KAPT_DOT, j], rec[k, KAPT, j], rec[k, KAPB_DOT, j],
                     rec[k, KAPB, j], P[b + C.com_offset, j], P[H.gravity_x, j], P[H.gravity_y, j], sloped)
                 pull, lat, hx, hy = towed_pull(frame[F_HX, j], frame[F_HY, j], ex, ey, rec[k, RES, j],
                                                P[b + C.mass, j], a_e, a_n, P[b + C.inertia, j], rate_dot,
@@ -82,23 +83,15 @@ def tracer_with(rhs_lanes_fn, walk):
                 frame[F_HX, j], frame[F_HY, j] = hx, hy
         b = HEAD_SIZE
         for j in range(L):
-            ex, ey, rate_dot, a_e, a_n = cart_motion(
-                y[2, j], y[n + 3, j], dy[n + 3, j], rec[0, KAPT_DOT, j], rec[0, KAPT, j], rec[0, KAPB_DOT, j],
+            ey, ex = sincos(y[2, j])
+            rate_dot, a_e, a_n = cart_motion(
+                ex, ey, y[n + 3, j], dy[n + 3, j], rec[0, KAPT_DOT, j], rec[0, KAPT, j], rec[0, KAPB_DOT, j],
                 rec[0, KAPB, j], P[b + C.com_offset, j], P[H.gravity_x, j], P[H.gravity_y, j], sloped)
             lat, front, pull = tractor_forces(frame[F_HX, j], frame[F_HY, j], ex, ey, P[b + C.mass, j], a_n,
                                               P[b + C.inertia, j], rate_dot, P[b + C.hitch_offset, j],
                                               P[b + C.com_offset, j], P[b + C.length, j], work[TRACTION_OUT, j],
                                               y[n + 2, j])
             out[TRACE_HEAD + TR_LAT, j], out[TR_FRONT_LAT, j], out[TRACE_HEAD + TR_PULL, j] = lat, front, pull
-
-    @inlined
-    def cart_motion(heading, V, acceleration, kapT_dot, kapT, kapB_dot, kapB, com, gravity_x, gravity_y, sloped):
-        """(e_k, th''_k, a_e, a_n) of a cart (``accelerations``; on a tilted plane ``in_plane``), on
-        numbers (an array handed to an inlined function keeps LLVM from vectorising the loop)."""
-        ey, ex = sincos(heading)
-        rate_dot, a_e, a_n = accelerations(kapT_dot, kapT, kapB_dot, kapB, V, acceleration, com, kapB * V, kapT * V)
-        tilted_e, tilted_n = in_plane(a_e, a_n, ex, ey, gravity_x, gravity_y)
-        return ex, ey, rate_dot, pick(sloped, tilted_e, a_e), pick(sloped, tilted_n, a_n)
 
     @jitable
     def trace_lanes(P_out, y, commands, law_inputs, max_rates, dy, rec, mode, work, frame, out):
@@ -111,6 +104,16 @@ def tracer_with(rhs_lanes_fn, walk):
         pulls(P_out, y, dy, rec, work, frame, out)
 
     return trace_lanes
+
+
+@inlined
+def cart_motion(ex, ey, V, acceleration, kapT_dot, kapT, kapB_dot, kapB, com, gravity_x, gravity_y, sloped):
+    """(th''_k, a_e, a_n) of a cart whose axis is e_k = (ex, ey) (``accelerations``; on a tilted plane
+    ``in_plane``), on numbers (an array handed to an inlined function keeps LLVM from vectorising the
+    loop)."""
+    rate_dot, a_e, a_n = accelerations(kapT_dot, kapT, kapB_dot, kapB, V, acceleration, com, kapB * V, kapT * V)
+    tilted_e, tilted_n = in_plane(a_e, a_n, ex, ey, gravity_x, gravity_y)
+    return rate_dot, pick(sloped, tilted_e, a_e), pick(sloped, tilted_n, a_n)
 
 
 trace_lanes = tracer_with(rhs_lanes, VMATH)
