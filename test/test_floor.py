@@ -63,3 +63,10 @@ def test_a_train_with_two_drafts_on_a_cart_is_refused():
     P[HEAD_SIZE + CART_SIZE * 2 + C.draft_count] = 2.0
     with pytest.raises(ValueError, match="at most one draft"):
         sweep_floor.constants(P, 8)
+
+
+def test_a_train_longer_than_the_c_arrays_is_refused():
+    assert f"#define MAXN {sweep_floor.MAX_CARTS}\n" in sweep_floor.SOURCE.read_text()
+    P, *_ = batch(sweep_floor.MAX_CARTS + 1, 8)["lanes"]
+    with pytest.raises(ValueError, match=f"at most {sweep_floor.MAX_CARTS} carts"):
+        sweep_floor.constants(P, 8)

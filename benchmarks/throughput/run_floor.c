@@ -7,8 +7,12 @@
 
    Built twice by the benchmark (sweep_floor.py): W = 1 by gcc -O2 -ffp-contract=off, one scheme at a
    time, whose steps equal rk_lanes.rk_step_lanes_libm's bit for bit (the same operations in the same
-   order, IEEE, the C library's functions); W = 8 by gcc -O3 -march=native -ffast-math, the schemes in
-   structure-of-arrays form, one per SIMD lane, which calls glibc's vector math library (libmvec).
+   order, IEEE, the C library's functions); W = 8 by gcc -O3 -march=native -fno-math-errno
+   -D__FAST_MATH__, the schemes in structure-of-arrays form, one per SIMD lane: IEEE arithmetic in the
+   same order, and sin, cos, atan2, tanh, exp from glibc's vector math library (libmvec), which math.h
+   declares only under __FAST_MATH__. Two things let gcc vectorise the loops: cos(x + 0.0), so that
+   sin and cos of one argument are not merged into sincos (which has no vector form; cos is even, so
+   the value is cos(x)), and restrict on the right-hand side's arrays. At most MAXN carts.
 
    Arrays, the scheme index innermost (W a row): head[NH][W], cart[n][NC][W], y[n + 5][W] (x, y,
    th_1..th_n, psi_1, V, z), commands[ticks][W], v_sets[ticks][W]; drafts[n]: 1 where cart k has a
@@ -28,7 +32,7 @@ static inline double pymin(double a, double b) { return b < a ? b : a; }
 static inline double pymax(double a, double b) { return b > a ? b : a; }
 
 /* walk.actuator: psi_1 at T s into a tick that started at psi0 (release > 1e300: the free lag;
-   not isinf, which -ffast-math takes to be false) */
+   not isinf, which a -ffast-math build would take to be false) */
 static inline double actuator(double max_angle, double tau0, double psi0, double command, double max_rate,
                               double release, double T) {
     double target = pymin(pymax(command, -max_angle), max_angle);

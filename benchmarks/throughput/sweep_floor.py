@@ -44,6 +44,8 @@ HEAD_FIELDS = ("time_constant", "max_rate", "max_angle", "max_force", "max_power
                "smoothing_speed")
 CART_FIELDS = ("length", "lam", "lam2", "mu2", "mass", "inertia", "rolling")
 DRAFT_FIELDS = ("soil_factor", "A", "B", "C", "width", "depth")
+#: run_floor.c's MAXN: its stage arrays hold so many carts
+MAX_CARTS = 8
 #: W: gcc's flags (module docstring)
 BUILDS = {1: ["-O2", "-ffp-contract=off"], VECTOR: ["-O3", "-march=native", "-fno-math-errno", "-D__FAST_MATH__"]}
 
@@ -93,6 +95,8 @@ def constants(P: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, np.nda
                       dtype=np.int32)
     if drafts.max() > 1:
         raise ValueError("run_floor.c takes at most one draft a cart")
+    if n > MAX_CARTS:
+        raise ValueError(f"run_floor.c takes at most {MAX_CARTS} carts (its MAXN)")
     head = np.stack([P[getattr(H, f)] for f in HEAD_FIELDS])
     cart = np.zeros((n, len(CART_FIELDS) + len(DRAFT_FIELDS), lanes))
     for k in range(n):
