@@ -27,6 +27,11 @@ The latest accepted message of any source sets what it sets, and only that: a st
 (the actuator's own for the first two), a speed command (speed_setpoint, cmd_vel, ackermann_cmd)
 sets V. A refused message (a non-finite field it uses) sets nothing; a value out of range is
 clamped (psi_cmd to +-max_angle, V to +-SPEED_LIMIT, the rate to (0, max_rate]).
+
+A train whose traction law follows no speed (law constant: physics.spec.unfollowed_speed) holds
+its force whatever V is set: the first speed command of a run makes ``ignored_speed`` the line
+that says so (the node logs it once and shows it in /diagnostics for the rest of the run), and
+``speed_ignored`` counts them.
 """
 from __future__ import annotations
 
@@ -35,6 +40,7 @@ import math
 import time
 from typing import Callable
 
+from ..physics.spec import unfollowed_speed
 from ..messages.decode import (TWIST_STAMPED_TYPE, CommandDecodeError, decode_ackermann, decode_bool, decode_twist,
                                decode_twist_stamped)
 
@@ -213,6 +219,15 @@ class HeldCommands:
         self.wheelbase, self.actuator = scene.train.carts[0].length, scene.train.actuator
         self.rate_limit: float | None = None
         self.lowered = True  # the implement (implement_lowered): lowered until commanded
+        self.unfollowed = unfollowed_speed(scene.train.traction)  # '': the traction law follows V
+        self.ignored_speed, self.speed_ignored = "", 0
+
+    def _speed_taken(self, topic: str) -> None:
+        """A speed command from ``topic`` was held: counted, and said, when the law ignores it."""
+        if self.unfollowed:
+            self.speed_ignored += 1
+            self.ignored_speed = self.ignored_speed or (
+                f"{topic}: speed commands are ignored: the train's {self.unfollowed}")
 
     def take(self, topic: str, x: float) -> str:
         """A Float64 command received on ``topic`` (steering_angle, speed_setpoint): held if
@@ -221,6 +236,8 @@ class HeldCommands:
         held = inp.take(x)
         if held is not None and topic == "steering_angle":
             self.rate_limit = None  # the rate limit goes with the steering command: the actuator's own
+        elif held is not None:
+            self._speed_taken(topic)
         return inp.last_problem if held != x else ""  # refused or clamped
 
     def take_message(self, topic: str, data: bytes) -> str:
@@ -245,6 +262,7 @@ class HeldCommands:
             self.steering.set(self.steering.value)  # is: a fresh command for the watchdog
         if setting.speed is not None:
             self.speed.set(setting.speed)
+            self._speed_taken(topic)
         if setting.lowered is not None:
             self.lowered = setting.lowered
         return setting.problem
@@ -257,7 +275,9 @@ class HeldCommands:
             inp.last_problem = ""
         self.rate_limit = None
         self.lowered = True
+        self.ignored_speed, self.speed_ignored = "", 0
 
     def problems(self) -> list[str]:
         """What was wrong with the last command of each source ('' where nothing)."""
-        return [self.steering.last_problem, self.speed.last_problem, *(m.last_problem for m in self.messages.values())]
+        return [self.steering.last_problem, self.speed.last_problem, *(m.last_problem for m in self.messages.values()),
+                self.ignored_speed]

@@ -374,7 +374,9 @@ class RunSession:
         simulation time it arrived, then held if valid, clamped to its range, or refused."""
         self._record({topic: self.messages.enc.float64(x)})
         self.pace.answer(topic)
+        said = self.inputs.ignored_speed
         self._warn(topic, self.inputs.take(topic, x))
+        self._say_ignored(said)
 
     def command_message(self, topic: str, data: bytes) -> None:
         """A command message received on ``topic`` (cmd_vel, ackermann_cmd: inputs.message_types)
@@ -382,7 +384,14 @@ class RunSession:
         sets (commands.twist_setting, ackermann_setting) is held, clamped, or it is refused."""
         self._record({topic: bytes(data)})
         self.pace.answer(topic)
+        said = self.inputs.ignored_speed
         self._warn(topic, self.inputs.take_message(topic, data))
+        self._say_ignored(said)
+
+    def _say_ignored(self, said: str) -> None:
+        """The log's one line for a run whose train ignores speed commands, at the first of them."""
+        if self.inputs.ignored_speed and not said:
+            self.log.warning(self.inputs.ignored_speed)
 
     def _warn(self, topic: str, problem: str) -> None:
         """A bad command said in the log, at most once every WARN_EVERY s a topic."""
@@ -524,6 +533,7 @@ class RunSession:
             "bag": recorder.path.name if recorder and recorder.recording else "",  # in bag_dir
             "lockstep": self.lockstep,
             "implement_lowered": self.inputs.lowered,
+            "speed_commands_ignored": self.inputs.speed_ignored,
             "position_error_estimate_m": self.companion.error,
             "position_tolerance_m": self.companion.tolerance,
         }

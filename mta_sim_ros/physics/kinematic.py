@@ -33,9 +33,9 @@ from . import kernel
 from .chain import ChainGeometry, chain
 from .dynamics import Model, StateLayout, Terms
 from .outputs import Outputs, kernel_outputs, reference_outputs
-from .spec import Traction, Train
+from .spec import SPEED_LAWS, Traction, Train
 
-COMMANDED_SPEED_LAWS = ("governor", "prescribed_speed")
+COMMANDED_SPEED_LAWS = SPEED_LAWS
 
 
 class KinematicModel:

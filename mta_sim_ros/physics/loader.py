@@ -410,6 +410,9 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None, recorded
     if grid is not None:
         _start_on(grid, train, initial, top)
     speed = _speed(top)
+    if speed is not None and spec.unfollowed_speed(train.traction):
+        top.fail("speed", top.values["speed"], f"left out for train '{train.name}': its "
+                 f"{spec.unfollowed_speed(train.traction)} (a speed is followed by law {' or '.join(spec.SPEED_LAWS)})")
     publish_rate = SCENE["publish_rate"].read(top)
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
     integrator = _integrator(top, publish_rate)

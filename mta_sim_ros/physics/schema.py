@@ -180,7 +180,9 @@ CART = Schema("A cart", "carts[k]", "One rigid body of the train (docs/model.md,
 
 LAW = Field("law", CHOICE, "the traction law", choices=TRACTION_LAWS)
 TRACTION = {
-    "constant": Schema("Traction: law constant", "forces.traction", "F_A1 = force.", (
+    "constant": Schema("Traction: law constant", "forces.traction", "F_A1 = force, whatever the speed: "
+                       "a scene's speed and the speed controllers command (mta reverse, mta follow and mta field run) "
+                       "are refused with it; the node says once that it ignores a speed command.", (
         LAW,
         Field("force", NUMBER, "F_A1, the traction force along v_A1", "N", FORCE),
     )),
@@ -371,7 +373,8 @@ SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, 
     Field("initial", MAPPING, "the start pose", default={}, default_text="all 0, hitches straight", schema=INITIAL),
     Field("steering", MAPPING, "the steering command", schema=STEERING),
     Field("speed", SPEED_COMMAND, "the speed command: a number held from t = 0, or {table: {time, speed}}", "m/s",
-          SPEED, None, default_text="the traction law's set_speed", schema=SPEED_COMMAND_TABLE),
+          SPEED, None, default_text="the traction law's set_speed", schema=SPEED_COMMAND_TABLE,
+          also=f"given only for a train whose traction law follows a speed ({' or '.join(spec.SPEED_LAWS)})"),
     Field("integrator", MAPPING, "the integrator", default={}, default_text="rk4, 0.01 s", schema=INTEGRATOR),
     Field("publish_rate", NUMBER, "the rate of ticks: the commands are sampled and the outputs written at this "
           "rate", "Hz", validate.PUBLISH_RATE, spec.Scene.publish_rate),

@@ -77,6 +77,31 @@ class Traction:
     max_accel: float = math.inf  # m/s^2, prescribed_speed
 
 
+#: the traction laws that drive V to a speed command; the constant law holds F_A1 = force whatever the
+#: speed, so a speed it is given would be ignored (``unfollowed_speed``)
+SPEED_LAWS = ("governor", "prescribed_speed")
+
+
+def unfollowed_speed(traction: Traction) -> str:
+    """'' when ``traction`` follows a speed command (a scene's speed table, a speed topic, a
+    controller's speed: SPEED_LAWS); else what it does instead, for the one line that refuses or
+    reports such a command (docs/formats.md, "Traction")."""
+    if traction.law in SPEED_LAWS:
+        return ""
+    return f"traction law {traction.law} holds F_A1 = {traction.force:g} N whatever the speed"
+
+
+def require_speed_law(train: Train, commander: str) -> None:
+    """Refuse (validate.InputError, one line) ``train`` for ``commander`` (a controller that commands
+    a speed: "mta reverse", "the implement controller") where its traction law would ignore that speed."""
+    from ..validate import fail, show
+
+    ignored = unfollowed_speed(train.traction)
+    if ignored:
+        fail("forces.traction.law", show(train.traction.law), f"{' or '.join(SPEED_LAWS)}: {commander} commands a "
+             f"speed, and its {ignored}", source=train.source or train.name)
+
+
 @dataclass(frozen=True)
 class Rolling:
     """Rolling resistance f m g at the rear axle B_k of one cart, against v_Bk."""

@@ -107,11 +107,13 @@ def inputs(args: argparse.Namespace):
     from ..field.scene import load_field_or_scene
     from ..field.turning import implement_of
     from ..physics.loader import load_train
+    from ..physics.spec import require_speed_law
 
     scene = load_field_or_scene(resolve_config_path(args.field))
     field = scene.field
     train = load_train(resolve_config_path(args.train))
     implement_of(train)
+    require_speed_law(train, "mta field run")
     plan_path = plan_file(args.plan) if args.plan else None
     folder = output_folder(args.out or Path("runs") / field.name, "--out")
     paths = {name: folder / name for name in OUTPUTS}

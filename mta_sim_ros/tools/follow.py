@@ -108,12 +108,14 @@ def field_inputs(args: argparse.Namespace):
     """(plan, train, settings) of --plan / --field and --train, each checked (InputError)."""
     from ..field.scene import load_field_or_scene
     from ..physics.loader import load_train
+    from ..physics.spec import require_speed_law
     from .field_run import load_plan, plan_file, settings_of
 
     train = load_train(resolve_config_path(args.train))
     from ..field.turning import implement_of
 
     implement_of(train)
+    require_speed_law(train, "mta follow")
     path = plan_file(args.plan) if args.plan else None
     field_path = args.field or (planned_field(path) if path else None)
     scene = load_field_or_scene(resolve_config_path(field_path))

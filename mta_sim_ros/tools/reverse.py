@@ -47,6 +47,7 @@ def main(args: argparse.Namespace) -> int:
     from ..controllers.reversing.controller import Reverser, design, design_curve
     from ..controllers.reversing.reverse_node import ReverseNode
     from ..physics.loader import load_scene
+    from ..physics.spec import require_speed_law
     from .maneuver import spin_and_report
 
     if args.settle >= args.distance:  # it would measure nothing
@@ -54,6 +55,7 @@ def main(args: argparse.Namespace) -> int:
              "from --settle m of reversing to --distance m)")
     scene = load_scene(resolve_config_path(args.scene))  # a bad scene: cli.main says it in one line, exit 2
     train = scene.train
+    require_speed_law(train, "mta reverse")
     weights = (args.q_offset, args.q_hitch, args.q_heading, args.r)
     try:
         curve = None if args.radius is None else design_curve(

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...field.turning import GUARD_MARGIN, TURN_SPEED, guarded_steering, implement_of
+from ...physics.spec import require_speed_law
 from ...symbolic.linear import heading_row, linearize, point_row
 from ...validate import fail, show
 
@@ -139,8 +140,10 @@ class Controller:
 
 
 def controller(train, settings: Settings = Settings()) -> Controller:
-    """The controller of ``train``'s implement under ``settings``."""
+    """The controller of ``train``'s implement under ``settings``; a train that cannot follow its
+    speeds (spec.require_speed_law) is refused."""
     m, d, width = implement_of(train)
+    require_speed_law(train, "the implement controller")
     speeds = settings.speeds(train)
     if not (speeds[0] > 0.0 and speeds[1] > 0.0 and speeds[2] < 0.0):
         fail("speeds", show(speeds), "working > 0, turn > 0 and reversing != 0 m/s")

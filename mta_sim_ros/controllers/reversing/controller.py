@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...physics.spec import require_speed_law
 from ...symbolic.linear import heading_row as cart_heading_row
 from ...symbolic.linear import linearize, point_row
 
@@ -64,8 +65,11 @@ def heading_row(train) -> np.ndarray:
 
 def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 10.0, q_heading: float = 10.0,
            r: float = 1.0) -> Gains:
-    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0)."""
+    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0); a train whose
+    traction law ignores the speed is refused (spec.require_speed_law)."""
     from scipy.linalg import solve_continuous_are
+
+    require_speed_law(train, "the reversing controller")
 
     model = linearize(train, "straight", speed)
     C, D = last_axle_row(train), heading_row(train)
@@ -198,8 +202,11 @@ def design_curve(train, speed: float, radius: float, side: float = 1.0, q_offset
                  q_hitch: float = 10.0, q_heading: float = 10.0, r: float = 1.0) -> CurveGains:
     """LQR about the steady turn that puts the last axle on a circle of ``radius`` (``side`` +1
     left, -1 right), reversing at ``speed`` < 0: the linear model about that turn (linear.py),
-    weights on the tractor's radial offset and heading and on each hitch angle's deviation."""
+    weights on the tractor's radial offset and heading and on each hitch angle's deviation; a train
+    whose traction law ignores the speed is refused (spec.require_speed_law)."""
     from scipy.linalg import solve_continuous_are
+
+    require_speed_law(train, "the reversing controller")
 
     from ...physics.steady import steady_circle
 
