@@ -1,16 +1,20 @@
 """What every benchmark shares: the report's header (command, date, machine), writing the report,
 progress lines, resolving a scene path, the environment of child processes (DDS on loopback),
-the node's parameters file and a child's CPU time, and timing several variants side by side."""
+the node's parameters file and a child's CPU time, timing several variants side by side, and
+generated trains."""
 from __future__ import annotations
 
 import datetime
 import json
+import math
 import os
 import platform
 import shlex
 import sys
 import time
 from pathlib import Path
+
+from mta_sim_ros.physics.spec import Actuator, Cart, Draft, Rolling, Traction, Train
 
 REPO = Path(__file__).resolve().parents[1]
 BENCHMARKS = "docs/benchmarks"  # where the reports go by default, from the repository
@@ -145,3 +149,22 @@ def side_by_side(variants: dict, rounds: int, calls: int = 1, clock=time.perf_co
                 fn()
             times[label].append((clock() - t0) / calls)
     return times
+
+
+# -- generated trains ----------------------------------------------------------------------------------
+
+#: the generated trains' traction
+GOVERNOR = Traction("governor", set_speed=3.0, max_force=125000.0, max_power=250000.0, kp=60000.0, ki=30000.0)
+
+
+def random_train(n: int, rng) -> Train:
+    """n carts of random size and mass (lengths 2-7 m, each hitch 1.5 m ahead of to 2 m behind its
+    cart's axle), rolling resistance on each, a draft with a speed term on the last cart and one on
+    the second: the throughput benchmarks' schemes and the reversing envelope's trains."""
+    carts = tuple(Cart(f"cart{k + 1}", rng.uniform(2.0, 7.0), rng.uniform(-1.5, 2.0), rng.uniform(0.3, 2.5),
+                       rng.uniform(2e3, 2e4), rng.uniform(1e4, 1e5)) for k in range(n))
+    drafts = (Draft(carts[-1].name, A=2500.0, B=40.0, C=2.0, width=12.0, depth=1.0),)
+    if n > 2:
+        drafts += (Draft("cart2", A=rng.uniform(20, 60), B=2.8, C=0.0, soil_factor=1.0, width=20.0, depth=8.0),)
+    return Train(name="bench", carts=carts, traction=GOVERNOR, rolling=tuple(Rolling(c.name, 0.08) for c in carts),
+                 draft=drafts, actuator=Actuator(time_constant=0.2, max_rate=0.6, max_angle=math.radians(40.0)))

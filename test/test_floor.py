@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from benchmarks.throughput import sweep_floor
-from benchmarks.throughput.lanes_rhs import batch, random_train
+from benchmarks.common import random_train
+from benchmarks.throughput.lanes_rhs import batch
 from mta_sim_ros.config import resolve_config_path
 from mta_sim_ros.physics.loader import load_scene
 

@@ -19,26 +19,11 @@ from mta_sim_ros.integrate.tableau import TABLEAUX
 from mta_sim_ros.physics import kernel
 from mta_sim_ros.physics.kernel import batched
 from mta_sim_ros.physics.kernel.motion import model_rhs, rhs
-from mta_sim_ros.physics.spec import Actuator, Cart, Draft, Rolling, Traction, Train
-
-from ..common import log, side_by_side, table
+from ..common import log, random_train, side_by_side, table
 
 CARTS, WIDTHS = (2, 3, 5), (1, 8, 64, 256)
 #: right-hand sides a timed call evaluates, whatever the width
 EVALUATIONS = 4096
-GOVERNOR = Traction("governor", set_speed=3.0, max_force=125000.0, max_power=250000.0, kp=60000.0, ki=30000.0)
-
-
-def random_train(n: int, rng) -> Train:
-    """n carts of random size and mass, rolling resistance on each, a draft with a speed term on
-    the last cart and one on the second."""
-    carts = tuple(Cart(f"cart{k + 1}", rng.uniform(2.0, 7.0), rng.uniform(-1.5, 2.0), rng.uniform(0.3, 2.5),
-                       rng.uniform(2e3, 2e4), rng.uniform(1e4, 1e5)) for k in range(n))
-    drafts = (Draft(carts[-1].name, A=2500.0, B=40.0, C=2.0, width=12.0, depth=1.0),)
-    if n > 2:
-        drafts += (Draft("cart2", A=rng.uniform(20, 60), B=2.8, C=0.0, soil_factor=1.0, width=20.0, depth=8.0),)
-    return Train(name="bench", carts=carts, traction=GOVERNOR, rolling=tuple(Rolling(c.name, 0.08) for c in carts),
-                 draft=drafts, actuator=Actuator(time_constant=0.2, max_rate=0.6, max_angle=math.radians(40.0)))
 
 
 def batch(n: int, width: int, seed: int = 20261206) -> dict:

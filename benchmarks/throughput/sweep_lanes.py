@@ -54,7 +54,7 @@ def schemes(scene, n: int, width: int) -> list:
     """``width`` random trains of n carts on ``scene``."""
     import numpy as np
 
-    from .lanes_rhs import random_train
+    from ..common import random_train
 
     rng = np.random.default_rng(20261206 + n)
     return [dataclasses.replace(scene, train=random_train(n, rng)) for _ in range(width)]
