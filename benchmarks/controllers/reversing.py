@@ -5,8 +5,11 @@ default unit backs 100 m along y = 0 from a start 0.5 m to the side with its hit
 measured like ``mta follow``: the largest and RMS lateral error of the seeder's axle after 30 m,
 the largest hitch angle and steering angle, the share of ticks the command hit the actuator's
 max_angle, and the verdict (a jackknife: where and why). Then, at 1 m/s: every cart's length
-scaled (a shorter or longer train), and larger starting offsets. Writes docs/benchmarks/reversing.md
-and docs/reversing.png (the paths of the tractor and the seeder from 2 m to the side).
+scaled (a shorter or longer train), and larger starting offsets. Then the envelope on generated
+trains (reversing_envelope.py): where the controller's check (controllers/reversing/envelope.py)
+holds a train and refuses it, against the dynamic level's run. Writes docs/benchmarks/reversing.md,
+docs/reversing.png (the paths of the tractor and the seeder from 2 m to the side) and
+docs/reversing_envelope.png.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ import numpy as np
 from mta_sim_ros.validate import output_file, path_arg
 
 from ..common import header_lines, table, write_report
+from .reversing_envelope import chart, envelope_lines, generated
 
 HELP = "the reversing controller: speeds, train lengths and offsets where it holds and where it folds"
 SPEEDS = (-0.5, -1.0, -2.0, -3.0, -5.0, -8.0)
@@ -29,6 +33,8 @@ OFFSETS = (0.5, 2.0, 5.0, 10.0, 20.0)
 def add_arguments(p) -> None:
     p.add_argument("--out", type=path_arg(output_file), default="docs/benchmarks/reversing.md", help="Markdown report")
     p.add_argument("--plot", type=path_arg(output_file), default="docs/reversing.png", help="trajectory plot")
+    p.add_argument("--envelope", type=path_arg(output_file), default="docs/reversing_envelope.png",
+                   help="chart of the generated trains held, by carts and speed")
 
 
 def scene(train, speed: float, offset: float, distance: float = 100.0):
@@ -80,14 +86,25 @@ def within(run, bound: float = 0.05, radius: float | None = None) -> str:
     return f"{along[outside[-1] + 1]:.0f}"
 
 
-def row(label: str, run, radius: float | None = None) -> tuple:
+def row(label: str, run, radius: float | None = None, check: str = "-") -> tuple:
     verdict = "holds" if not run.stopped else "folds: " + run.stopped.split(";")[0].split(" (limit")[0]
     return (label, f"{run.distance:.0f}", within(run, radius=radius), f"{run.max_error * 100:.1f}", f"{run.rms_error * 100:.1f}",
-            f"{run.max_hitch_deg:.1f}", f"{run.max_steering_deg:.1f}", f"{100 * run.saturated:.0f}", verdict)
+            f"{run.max_hitch_deg:.1f}", f"{run.max_steering_deg:.1f}", f"{100 * run.saturated:.0f}", check, verdict)
+
+
+def straight(train, speed: float, start, gains=None, label: str = "") -> tuple:
+    """The row of backing ``train`` from scene ``start`` with ``gains`` (the default design, unchecked),
+    with the controller's check of those gains (envelope.holding: what mta reverse would say)."""
+    from mta_sim_ros.controllers.reversing.controller import design, reverse
+    from mta_sim_ros.controllers.reversing.envelope import holding
+
+    gains = gains or design(train, speed, check=False)
+    run = reverse(start, gains, 100.0, settle=30.0)
+    return row(label, run, check="holds" if not holding(train, gains) else "refuses")
 
 
 HEADER = ["run", "reversed, m", "until within 5 cm, m", "max error after 30 m, cm", "RMS, cm", "largest hitch, deg",
-          "largest steering, deg", "ticks at max_angle, %", "verdict"]
+          "largest steering, deg", "ticks at max_angle, %", "the check", "verdict"]
 
 
 def main(args) -> int:
@@ -99,40 +116,36 @@ def main(args) -> int:
     lines = header_lines("Backing up: where the reversing controller holds", args)
     rows = []
     for speed in SPEEDS:
-        run = reverse(scene(train, speed, 0.5), design(train, speed), 100.0, settle=30.0)
-        rows.append(row(f"{speed:g} m/s", run))
+        rows.append(straight(train, speed, scene(train, speed, 0.5), label=f"{speed:g} m/s"))
         print(rows[-1], flush=True)
-    lines += ["## Speeds (default unit, 0.5 m to the side)", "", *table(rows, HEADER, "lrrrrrrrl"), ""]
+    lines += ["## Speeds (default unit, 0.5 m to the side)", "", *table(rows, HEADER, "lrrrrrrrll"), ""]
     rows = []
     for factor in SCALES:
         t = scaled(train, factor)
-        run = reverse(scene(t, -1.0, 0.5), design(t, -1.0), 100.0, settle=30.0)
-        rows.append(row(f"lengths x{factor:g} ({sum(c.length for c in t.carts):.1f} m of carts)", run))
+        rows.append(straight(t, -1.0, scene(t, -1.0, 0.5),
+                             label=f"lengths x{factor:g} ({sum(c.length for c in t.carts):.1f} m of carts)"))
         print(rows[-1], flush=True)
-    lines += ["## Train lengths (every l, a, c scaled; -1 m/s)", "", *table(rows, HEADER, "lrrrrrrrl"), ""]
+    lines += ["## Train lengths (every l, a, c scaled; -1 m/s)", "", *table(rows, HEADER, "lrrrrrrrll"), ""]
     rows = []
     for offset in OFFSETS:
-        run = reverse(scene(train, -1.0, offset), design(train, -1.0), 100.0, settle=30.0)
-        rows.append(row(f"{offset:g} m to the side", run))
+        rows.append(straight(train, -1.0, scene(train, -1.0, offset), label=f"{offset:g} m to the side"))
         print(rows[-1], flush=True)
     lines += ["## Starting offsets (default unit, -1 m/s; the gain sees at most "
-              f"{MAX_ERROR:g} m of error)", "", *table(rows, HEADER, "lrrrrrrrl"), ""]
+              f"{MAX_ERROR:g} m of error)", "", *table(rows, HEADER, "lrrrrrrrll"), ""]
     rows = []
     for offset in OFFSETS[:3]:
-        gains = dataclasses.replace(design(train, -1.0), max_error=math.inf)
-        run = reverse(scene(train, -1.0, offset), gains, 100.0, settle=30.0)
-        rows.append(row(f"{offset:g} m to the side, the whole error", run))
+        gains = dataclasses.replace(design(train, -1.0, check=False), max_error=math.inf)
+        rows.append(straight(train, -1.0, scene(train, -1.0, offset), gains, f"{offset:g} m to the side, the whole error"))
         print(rows[-1], flush=True)
     for hitch in (10.0, 20.0, 30.0):
         start = dataclasses.replace(scene(train, -1.0, 0.5), initial=dataclasses.replace(
             scene(train, -1.0, 0.5).initial, hitch_angles=(math.radians(hitch), -math.radians(hitch))))
-        run = reverse(start, design(train, -1.0), 100.0, settle=30.0)
-        rows.append(row(f"hitches at +-{hitch:g} deg at the start", run))
+        rows.append(straight(train, -1.0, start, label=f"hitches at +-{hitch:g} deg at the start"))
         print(rows[-1], flush=True)
     lines += ["## Where it folds (-1 m/s)", "",
               "The linear gain shown the whole of a large offset asks for more steering than the actuator's "
               "40 deg: saturated, the loop is no longer the designed one and the train folds. Bent hitches "
-              "at the start likewise.", "", *table(rows, HEADER, "lrrrrrrrl"), ""]
+              "at the start likewise.", "", *table(rows, HEADER, "lrrrrrrrll"), ""]
     rows = []
     for radius, side, speed in ((100.0, 1.0, -1.0), (50.0, 1.0, -1.0), (50.0, -1.0, -3.0), (30.0, 1.0, -1.0),
                                 (20.0, 1.0, -1.0), (15.0, 1.0, -1.0)):
@@ -140,14 +153,19 @@ def main(args) -> int:
         try:
             gains = design_curve(train, speed, radius, side)
         except ValueError as err:
-            rows.append((label, "-", "-", "-", "-", "-", "-", "-", f"no steady turn: {err}"))
+            rows.append((label, "-", "-", "-", "-", "-", "-", "-", "-", f"no steady turn: {err}"))
             continue
         run = reverse_curve(curve_scene(train, gains), gains, (0.0, 0.0), 100.0, settle=30.0)
         rows.append(row(label + f": psi_0 {math.degrees(gains.steering):.2f} deg", run, radius))
         print(rows[-1], flush=True)
     lines += ["## Along a curve (the gain designed about the steady reversing turn; 0.3 m outside the circle)", "",
               "The error is the last axle's radial offset from its circle; 'until within 5 cm' counts arc length.", "",
-              *table(rows, HEADER, "lrrrrrrrl"), ""]
+              *table(rows, HEADER, "lrrrrrrrll"), ""]
+    envelope_rows, figures = generated()
+    lines += envelope_lines(envelope_rows)
+    chart(figures, Path(args.envelope))
+    lines += [f"![held, by carts](../{Path(args.envelope).name})" if Path(args.envelope).parent.name == "docs" else
+              f"Chart: {args.envelope}", ""]
     trajectory = reverse(scene(train, -1.0, 2.0), design(train, -1.0), 100.0, settle=30.0)
     plot(trajectory, train, Path(args.plot))
     lines += [f"![the paths](../{Path(args.plot).name})" if Path(args.plot).parent.name == "docs" else

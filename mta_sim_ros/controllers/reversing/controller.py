@@ -64,9 +64,11 @@ def heading_row(train) -> np.ndarray:
 
 
 def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 10.0, q_heading: float = 10.0,
-           r: float = 1.0) -> Gains:
-    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0); a train whose
-    traction law ignores the speed is refused (spec.require_speed_law)."""
+           r: float = 1.0, check: bool = True) -> Gains:
+    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0). Refused
+    (validate.InputError, one line): a train whose traction law ignores the speed
+    (spec.require_speed_law), and with ``check`` one whose loop with the actuator's limits folds or
+    does not settle from the start the controller is made for (envelope.holding)."""
     from scipy.linalg import solve_continuous_are
 
     require_speed_law(train, "the reversing controller")
@@ -81,8 +83,24 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     P = solve_continuous_are(model.A, model.B, Q, R)
     K = np.linalg.solve(R, model.B.T @ P)
     closed = np.linalg.eigvals(model.A - model.B @ K)
-    return Gains(speed, K, model.states, closed,
-                 {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}, C)
+    gains = Gains(speed, K, model.states, closed,
+                  {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}, C)
+    if check:
+        refuse_unheld(train, gains)
+    return gains
+
+
+def refuse_unheld(train, gains: Gains) -> None:
+    """Refuse, in one line with the reason, a train and speed the loop of ``gains`` cannot hold
+    (envelope.holding)."""
+    from ...validate import fail, show
+    from .envelope import START_HITCH, START_OFFSET, holding
+
+    why = holding(train, gains)
+    if why:
+        fail("speed", show(gains.speed), f"one the reversing loop holds for train '{train.name}' (its kinematic "
+             f"loop with the actuator's angle and rate limits, from {START_OFFSET:g} m off the line with the "
+             f"hitches at +-{math.degrees(START_HITCH):g} deg): {why}", source=train.source)
 
 
 def state_of(out) -> np.ndarray:

@@ -1,0 +1,104 @@
+"""Whether the reversing loop can hold a train, known before it starts (issue 25). No ROS here.
+
+The LQR gain (controller.design) stabilises the linear model about straight reversing, but the
+train it steers has an actuator the design leaves out of its limits: the command is clipped to
+max_angle and the steering turns at most max_rate. Where the loop asks for more, it is no longer
+the designed one and the train can fold. ``holding`` runs that loop before the train moves: the
+train's own kinematic equations (linear.equations on numbers: the chain the linear model is the
+derivative of, hitch offsets and all), the actuator psi' = clip((u - psi) / tau, +-max_rate), the
+command u = gains.command(x) clipped to max_angle and held over each controller tick; from the
+start the controller is made for, START_OFFSET m to the side of the line with the hitches bent
++-START_HITCH in turn (at most half a hitch's limit), reversing HORIZON m. It cannot hold the train where a hitch angle reaches
+its cart's max_hitch_angle (a jackknife) or the chain's geometry breaks (a cart's velocity angle
+passes 90 deg), or where after the horizon the last axle is not back within SETTLED m of the
+line, its hitches straighter than at the start.
+
+What it leaves out (the check is necessary, not sufficient): the dynamic level's inertia and
+forces (the speed is held), the slip level's tyres. ``python -m benchmarks reversing`` holds its
+verdicts against the dynamic level's runs on generated trains.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...physics.chain import ChainGeometry
+from ...symbolic.linear import equations
+
+#: m, rad: the start the check runs from (the benchmark's and mta reverse's usual start: the last
+#: axle some way off the line, the hitches a little bent)
+START_OFFSET = 0.5
+START_HITCH = math.radians(2.0)
+#: m the last axle reverses in the check; m within which it must then be of the line
+HORIZON = 100.0
+SETTLED = 0.05
+#: s: the controller's tick (mta reverse answers each 50 Hz pose)
+TICK = 0.02
+
+
+def holding(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
+    """'' when the loop of ``gains`` (controller.Gains) holds ``train`` (module docstring); else why
+    not, in one clause ("hitch 2 reaches 67.3 deg, past its 60 deg limit, after 11.2 m")."""
+    x = start(train)
+    n, V = train.n, gains.speed
+    geom = ChainGeometry.of(train)
+    act = train.actuator
+    limits = [cart.max_hitch_angle for cart in train.carts[1:]]
+    C = gains.C
+    steps = int(math.ceil(horizon / abs(V) / tick))
+    for i in range(steps):
+        u = gains.command(x, act.max_angle)
+        try:
+            x = rk4(x, u, V, act.time_constant, act.max_rate, geom, tick)
+        except (ValueError, ZeroDivisionError):  # math's sqrt of a negative: no chain there
+            x = np.full_like(x, math.nan)
+        if not np.all(np.isfinite(x)):
+            return f"the chain's geometry breaks after {abs(V) * (i + 1) * tick:.1f} m"
+        for k, (phi, limit) in enumerate(zip(x[2:2 + n - 1], limits), start=2):
+            if abs(phi) >= limit:
+                return (f"hitch {k} reaches {math.degrees(abs(phi)):.1f} deg, past its {math.degrees(limit):.0f} deg "
+                        f"limit, after {abs(V) * (i + 1) * tick:.1f} m")
+    offset = abs(float(C @ x))
+    worst = max((abs(p) for p in x[2:2 + n - 1]), default=0.0)
+    if offset > SETTLED or worst > START_HITCH:
+        return (f"after {horizon:g} m the last axle is {offset:.2f} m off the line and a hitch at "
+                f"{math.degrees(worst):.1f} deg: the loop does not settle")
+    return ""
+
+
+def start(train) -> np.ndarray:
+    """x = (y, th_1, phi_2..phi_n, psi) of the check's start: the whole train START_OFFSET m to the
+    side, the hitches at +START_HITCH, -START_HITCH, ... in turn, each at most half its limit."""
+    x = np.zeros(train.n + 2)
+    x[0] = START_OFFSET
+    x[2:train.n + 1] = [min(START_HITCH, 0.5 * cart.max_hitch_angle) * (-1) ** k
+                        for k, cart in enumerate(train.carts[1:])]
+    return x
+
+
+def rk4(x, u, V, tau, max_rate, geom, h) -> np.ndarray:
+    """One rk4 step of the kinematic train with the rate-limited actuator, the command u held."""
+    def f(z):
+        dz = np.array(equations(list(z), u, V, tau, 1.0, geom, "straight", math), dtype=float)
+        dz[-1] = min(max(dz[-1], -max_rate), max_rate)
+        return dz
+
+    k1 = f(x)
+    k2 = f(x + 0.5 * h * k1)
+    k3 = f(x + 0.5 * h * k2)
+    k4 = f(x + h * k3)
+    return x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def start_scene(train, speed: float, duration: float = 1000.0):
+    """A scene of ``train`` at the check's start (``start``), reversing at ``speed`` on the dynamic
+    level, 50 Hz: what the check's verdict is held against (controller.reverse runs it)."""
+    from ...physics import loader
+
+    x = start(train)
+    data = {"name": "backing", "train": "unused.yaml", "duration": duration,
+            "initial": {"y": float(x[0]), "speed": speed, "hitch_angles": [float(v) for v in x[2:train.n + 1]]},
+            "steering": {"maneuver": "straight"}, "speed": speed, "integrator": {"method": "rk4", "step": 0.01},
+            "publish_rate": 50, "fidelity": "dynamic"}
+    return loader.scene_from_data(data, "the check's start", train)
