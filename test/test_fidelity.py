@@ -204,8 +204,9 @@ def test_auto_without_needs_keeps_the_article_model_and_forcing_wins():
 def test_auto_speed_rule_both_sides():
     """Straight at a commanded speed: prescribing the speed costs a distance error a M / ki (times
     GOVERNOR_MARGIN) on a ramp of slope a. A ramp predicted at 0.6x a 0.5 m tolerance sits under
-    it (kinematic), one at 1.6x over it (dynamic)."""
-    tr = trains.train(3)
+    it (kinematic), one at 1.6x over it (dynamic). (An engine that holds the ramp's last speed: at
+    trains.GOVERNOR's 250 kW it could not, test_a_speed_the_governor_cannot_hold_rules_out_kinematic.)"""
+    tr = trains.train(3, traction=dataclasses.replace(trains.GOVERNOR, max_power=1e6))
     mass = sum(c.mass for c in tr.carts)
     ki = tr.traction.ki
     at_tolerance = 0.5 * ki / mass / fidelity.GOVERNOR_MARGIN  # the slope whose prediction is 0.5 m
@@ -245,3 +246,72 @@ def test_auto_never_picks_kinematic_without_a_commanded_speed():
     sc = trains.scene(tr, duration=20.0)
     choice = fidelity.choose(with_needs(sc, poses=10.0))
     assert choice.level == "dynamic", choice.reason
+
+
+# -- where no prediction bounds the error: a towed train reversing ----------------------------------
+
+def test_a_towed_train_reversing_has_no_bounded_prediction_and_auto_takes_slip():
+    """Reversing, every hitch mode grows at |V| / l_k: the no-slip levels' predictions are inf (a
+    bound, if a useless one) and auto, asked for any error, takes slip and says why. A tractor alone,
+    or the same train forward, keeps its finite predictions."""
+    from mta_sim_ros.config import resolve_config_path
+    from mta_sim_ros.physics.loader import load_scene
+
+    scene = load_scene(resolve_config_path("scenes/reversing.yaml"))
+    assert scene.initial.speed < 0 and scene.train.n == 3
+    assert "reverses a towed train" in fidelity.unbounded(scene)
+    est = fidelity.estimate(scene)
+    assert all(math.isinf(v) for level in ("kinematic", "dynamic") for v in est[level].values())
+    choice = fidelity.choose(with_needs(scene, hitch_angles=0.5))
+    assert choice.level == "slip" and "reverses a towed train, whose hitch modes grow" in choice.reason
+    forward = dataclasses.replace(scene, initial=dataclasses.replace(scene.initial, speed=2.0),
+                                  speed=Table((0.0,), (2.0,)))
+    alone = dataclasses.replace(scene, train=trains.train(1), initial=dataclasses.replace(scene.initial, hitch_angles=()))
+    for bounded in (forward, alone):
+        assert fidelity.unbounded(bounded) == ""
+        assert all(math.isfinite(v) for v in fidelity.estimate(bounded)["dynamic"].values())
+    pushed = dataclasses.replace(trains.scene(trains.train(2, traction=Traction("constant", force=-2e4))), speed=None)
+    assert "reverses" in fidelity.unbounded(pushed)  # a constant force backwards: no set-point says so
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, carts", [("reversing", None), ("reversing", 2), ("straight_pass", None),
+                                         ("headland_turn", 4)])
+def test_no_level_is_measured_above_its_prediction(name, carts):
+    """Each level's errors against slip (benchmarks/accuracy/fidelity.py's compare, which writes
+    docs/fidelity.md) within its predictions, on shipped scenes and with generated trains, forward
+    and reversing."""
+    from benchmarks.accuracy.fidelity import compare
+    from benchmarks.common import random_train
+
+    from mta_sim_ros.config import resolve_config_path
+    from mta_sim_ros.physics.loader import load_scene
+
+    scene = load_scene(resolve_config_path(f"scenes/{name}.yaml"))
+    if carts:
+        scene = dataclasses.replace(scene, train=random_train(carts, np.random.default_rng(carts)),
+                                    initial=dataclasses.replace(scene.initial, hitch_angles=()))
+    rows, over = compare(scene, 1)
+    assert over == [], over
+    if name == "reversing":  # the dynamic level's row: no finite prediction bounds it
+        assert all(cell.endswith("(inf)") for cell in rows[1][2:6]), rows[1]
+
+
+def test_a_speed_the_governor_cannot_hold_rules_out_kinematic():
+    """A set speed whose steady force (resistances and drafts) is over the governor's limit
+    min(max_force, max_power / V): the dynamic level settles below it, so the kinematic level, which
+    prescribes it, has no bounded prediction; auto says why. With power to spare, it has one."""
+    tr = trains.train(3)
+    fast = dataclasses.replace(trains.scene(tr, duration=30.0, speed=4.5), speed=Table((0.0,), (4.5,)))
+    why = fidelity.unheld_speed(fast)
+    assert why.startswith("the governor cannot hold 4.5 m/s: the steady force it needs")
+    assert all(math.isinf(v) for v in fidelity.estimate(fast)["kinematic"].values())
+    choice = fidelity.choose(with_needs(fast, speed=1.0))
+    assert choice.level == "dynamic" and why in choice.reason
+    outs, _ = record(fast, "dynamic")
+    assert outs[-1].speed < 4.5 - 0.1  # what the rule says: the train does not reach it
+    strong = dataclasses.replace(fast, train=dataclasses.replace(tr, traction=dataclasses.replace(
+        trains.GOVERNOR, max_power=1e6)))
+    assert fidelity.unheld_speed(strong) == ""
+    assert abs(record(strong, "dynamic")[0][-1].speed - 4.5) < 0.01
+

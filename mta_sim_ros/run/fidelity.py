@@ -23,6 +23,8 @@ import numpy as np
 from ..physics.spec import FIDELITY_LEVELS, Scene, Train
 
 LEVELS = FIDELITY_LEVELS
+#: the outputs a scene's needs name (spec.Needs), each level's prediction per output
+OUTPUTS = ("poses", "speed", "power", "hitch_angles")
 
 # Constants of the predicted errors (estimate()), fitted as upper envelopes of the measured ratio
 # error / predictor on the shipped forward scenes (docs/fidelity.md, ``python -m benchmarks fidelity``; the
@@ -76,7 +78,6 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     the plane's contour, both ways, where gravity pushes the axles sideways the most."""
     from ..physics import kernel
     from ..physics.slip import SlipModel, no_slip_tyre_forces
-    from ..physics.steady import STRAIGHT, SteadyStateError, steady_circle
 
     tr = scene.train
     model = SlipModel(tr)
@@ -111,19 +112,9 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     seen: dict = {}  # (psi, V) -> alpha: a scene holds its inputs for long stretches
     for psi, v in zip(psis.tolist(), speeds.tolist()):
         vs.append(v)
-        if (psi, v) in seen:
-            alphas.append(seen[psi, v])
-            continue
-        y = np.zeros(L.size)
-        y[L.steering], y[L.speed] = psi, v
-        try:
-            hitch = steady_circle(tr, psi).hitch_angles if abs(psi) > STRAIGHT else (0.0,) * (tr.n - 1)
-        except SteadyStateError:
-            seen[psi, v] = math.inf
-            alphas.append(math.inf)
-            continue
-        y[L.heading] = np.concatenate(([0.0], -np.cumsum(hitch)))
-        seen[psi, v] = largest(y, psi, v)
+        if (psi, v) not in seen:
+            y = steady_state(tr, L, psi, v)
+            seen[psi, v] = math.inf if y is None else largest(y, psi, v)
         alphas.append(seen[psi, v])
     ini = scene.initial
     y = np.zeros(L.size)
@@ -131,6 +122,54 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     y[L.heading] = np.concatenate(([0.0], -np.cumsum(ini.hitch_angles or (0.0,) * (tr.n - 1))))
     alpha0 = largest(y, ini.steering, _speed_at(scene, 0.0))
     return ts, np.array(vs), np.array(alphas), alpha0
+
+
+def steady_state(tr: Train, L, psi: float, v: float):
+    """The state of ``tr`` (layout L) on the steady circle of the steering psi at speed v, heading 0
+    (straight below STRAIGHT), or None where there is no steady circle."""
+    from ..physics.steady import STRAIGHT, SteadyStateError, steady_circle
+
+    y = np.zeros(L.size)
+    y[L.steering], y[L.speed] = psi, v
+    try:
+        hitch = steady_circle(tr, psi).hitch_angles if abs(psi) > STRAIGHT else (0.0,) * (tr.n - 1)
+    except SteadyStateError:
+        return None
+    y[L.heading] = np.concatenate(([0.0], -np.cumsum(hitch)))
+    return y
+
+
+def unheld_speed(scene: Scene, dt: float = 0.5) -> str:
+    """'' where the traction can hold every speed set-point of the scene; else why not, for a governor
+    whose force limit, min(max_force, max_power / |V|), is below the steady force a set-point needs
+    (the resistances, drafts and grade of the quasi-steady state of ``slip_angles``; on a tilted plane
+    along its fall line, uphill). There the dynamic and slip levels run slower than the set speed
+    and the kinematic level, which prescribes it, is off by what the inputs do not say."""
+    from ..physics import kernel
+    from ..physics.dynamics import Model
+
+    tr = scene.train
+    law = tr.traction
+    if law.law != "governor" or tr.relief is not None:
+        return ""
+    dyn = Model(tr)
+    L = dyn.layout
+    ts = np.arange(0.0, scene.duration + dt / 2, dt)
+    psis = np.clip(np.interp(ts, scene.steering.time, scene.steering.value), -tr.actuator.max_angle,
+                   tr.actuator.max_angle)
+    uphill = math.atan2(-dyn.P[kernel.H.gravity_y], -dyn.P[kernel.H.gravity_x]) if dyn.P[kernel.H.slope] else 0.0
+    for psi, v in sorted(set(zip(psis.tolist(), _speeds_at(scene, ts).tolist()))):
+        y = steady_state(tr, L, psi, v)
+        if y is None or v == 0.0:
+            continue
+        y[L.heading] += uphill if v > 0.0 else uphill + math.pi
+        tm = dyn.terms(y, psi, v)
+        needed = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term + sum(tm.grade)
+        limit = min(law.max_force, law.max_power / max(abs(v), 0.1))
+        if abs(needed) > limit:
+            return (f"the governor cannot hold {v:g} m/s: the steady force it needs, {abs(needed):.4g} N, is over its "
+                    f"limit min(max_force, max_power / |V|) = {limit:.4g} N")
+    return ""
 
 
 def _speed_at(scene: Scene, t: float) -> float:
@@ -171,6 +210,26 @@ def scene_inputs(scene: Scene) -> SceneInputs:
 
 # -- predicted errors -----------------------------------------------------------------------------
 
+def unbounded(scene: Scene) -> str:
+    """'' where ``estimate``'s predictions bound the lower levels' errors; else why they cannot: a
+    train with towed carts that reverses (a speed set-point or the start's speed below 0, or a
+    constant traction force that pushes backwards). About straight motion its hitch modes are
+    -V / l_k (linear.straight_closed_form): backwards they grow, and so does any difference
+    between two levels, from the slip the no-slip levels leave out to rounding; no reading of the
+    inputs bounds that (docs/fidelity.md's reversing scene: 0.9 rad of hitch angle measured where
+    the inputs gave 0.03)."""
+    tr = scene.train
+    if tr.n < 2:
+        return ""
+    t = np.arange(0.0, scene.duration + 0.005, 0.01)
+    backwards = scene.initial.speed < 0.0 or float(np.min(_speeds_at(scene, t))) < 0.0 or (
+        tr.traction.law == "constant" and tr.traction.force < 0.0)
+    if not backwards:
+        return ""
+    return ("the scene reverses a towed train, whose hitch modes grow at |V| / l_k: no prediction from its inputs "
+            "bounds a lower level's error")
+
+
 def estimate(scene: Scene) -> dict[str, dict[str, float]]:
     """Predicted error of each level against slip, per output (the units of spec.Needs), from the
     scene's inputs (scene_inputs) and the constants above.
@@ -185,7 +244,14 @@ def estimate(scene: Scene) -> dict[str, dict[str, float]]:
     against the resistances (M a / (sum f m g)); in turns at a constant set speed the governor's
     own speed dips make KINEMATIC_* x the slip terms. Only where the traction law commands a
     speed (governor or prescribed_speed); else the kinematic level is not available (inf).
+
+    Where the errors grow without a bound the inputs give (``unbounded``: a towed train reversing),
+    both no-slip levels' predictions are inf; where the governor cannot hold a set speed
+    (``unheld_speed``), the kinematic level's are.
     """
+    if unbounded(scene):
+        return {"slip": dict.fromkeys(OUTPUTS, 0.0), "dynamic": dict.fromkeys(OUTPUTS, math.inf),
+                "kinematic": dict.fromkeys(OUTPUTS, math.inf)}
     inp = scene_inputs(scene)
     tr = scene.train
     alpha = inp.max_slip_angle
@@ -198,7 +264,7 @@ def estimate(scene: Scene) -> dict[str, dict[str, float]]:
         "power": SLIP_POWER_FACTOR * alpha,
     }
     out = {"slip": {k: 0.0 for k in no_slip}, "dynamic": dict(no_slip)}
-    if not inp.speed_commanded:
+    if not inp.speed_commanded or unheld_speed(scene):
         out["kinematic"] = {k: math.inf for k in no_slip}
         return out
     mass = sum(c.mass for c in tr.carts)
@@ -236,12 +302,17 @@ def choose(scene: Scene, forced: str | None = None) -> Choice:
                                  "predictions read no grid)")
     needs = scene.needs.asked()
     est = _estimate_cached(scene)
+    why = unbounded(scene)
+    if why:
+        return Choice("slip", f"slip: auto, the highest level: {why}", est)
     for level in LEVELS:
         over = [f"{k} {est[level][k]:.3g} > {tol:g}" for k, tol in needs.items() if not est[level][k] <= tol]
         if not over:
             met = ", ".join(f"{k} {est[level][k]:.3g} <= {tol:g}" for k, tol in needs.items())
             cheaper = [lv for lv in LEVELS[: LEVELS.index(level)]]
             why_not = "; ".join(f"{lv} misses ({_misses(est[lv], needs)})" for lv in cheaper)
+            unheld = unheld_speed(scene) if "kinematic" in cheaper else ""
+            why_not += f" ({unheld})" if unheld else ""
             return Choice(level, f"{level}: auto, predicted errors {met}" + (f"; {why_not}" if why_not else ""), est)
     return Choice("slip", "slip: auto, the highest level (no level's predicted error meets every need)", est)
 
