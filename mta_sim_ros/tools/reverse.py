@@ -25,6 +25,8 @@ from ..validate import Range, fail, number_arg, output_file, path_arg, show
 SPEED = Range.of(-20.0, -0.05, "m/s")
 DISTANCE = Range.of(1.0, 10000.0, "m")
 WEIGHT = Range.of(1e-6, 1e6)
+#: the LQR weights' defaults (controller.design's)
+WEIGHTS = {"q_offset": 1.0, "q_hitch": 10.0, "q_heading": 10.0, "r": 1.0}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -33,9 +35,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--distance", type=number_arg(DISTANCE), default=60.0, help="m the last axle reverses (default 60)")
     p.add_argument("--settle", type=number_arg(Range.of(0.0, 10000.0, "m")), default=20.0,
                    help="m of reversing left out of the error (default 20)")
-    for name, default, what in (("q-offset", 1.0, "the last axle's lateral offset"), ("q-hitch", 10.0, "each hitch angle"),
-                                ("q-heading", 10.0, "the last cart's heading"), ("r", 1.0, "the steering command")):
-        p.add_argument(f"--{name}", type=number_arg(WEIGHT), default=default, help=f"LQR weight of {what} (default {default:g})")
+    for name, what in (("q_offset", "the last axle's lateral offset"), ("q_hitch", "each hitch angle"),
+                       ("q_heading", "the last cart's heading"), ("r", "the steering command")):
+        p.add_argument(f"--{name.replace('_', '-')}", type=number_arg(WEIGHT), help=f"LQR weight of {what} (default "
+                       f"{WEIGHTS[name]:g}; with no weight given, the first weights that hold the train: "
+                       "controller.held_design)")
     p.add_argument("--radius", type=number_arg(Range.of(5.0, 1e5, "m")),
                    help="back along a circle of this radius (the last axle's), m (default: a straight line)")
     p.add_argument("--side", choices=("left", "right"), default="left", help="the circle's side (default left)")
@@ -44,7 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..config import resolve_config_path
-    from ..controllers.reversing.controller import Reverser, design, design_curve
+    from ..controllers.reversing.controller import Reverser, design, design_curve, held_design
     from ..controllers.reversing.reverse_node import ReverseNode
     from ..physics.loader import load_scene
     from ..physics.spec import require_speed_law
@@ -56,12 +60,14 @@ def main(args: argparse.Namespace) -> int:
     scene = load_scene(resolve_config_path(args.scene))  # a bad scene: cli.main says it in one line, exit 2
     train = scene.train
     require_speed_law(train, "mta reverse")
-    weights = (args.q_offset, args.q_hitch, args.q_heading, args.r)
+    given = {name: getattr(args, name) for name in WEIGHTS if getattr(args, name) is not None}
+    weights = tuple((WEIGHTS | given).values())
     try:
         curve = None if args.radius is None else design_curve(
             train, args.speed, args.radius, 1.0 if args.side == "left" else -1.0, *weights)
     except ValueError as err:  # a circle tighter than the train can follow
         print(f"mta reverse: --radius: {err}", file=sys.stderr)
         return 2
-    reverser = Reverser(train, design(train, args.speed, *weights), curve, args.distance, args.settle, args.side)
+    gains = design(train, args.speed, *weights) if given else held_design(train, args.speed)
+    reverser = Reverser(train, gains, curve, args.distance, args.settle, args.side)
     return spin_and_report(lambda: ReverseNode(reverser), args.ros_args, args.report)

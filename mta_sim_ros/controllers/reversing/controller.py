@@ -14,7 +14,11 @@ offset to first order (y_Bn = y - sum of each segment's length times its heading
 to A_{k+1}, A_k to B_k), R = r. The gain sees the last axle at most MAX_ERROR from the line (the
 line moved towards the train by the rest), and the command is clipped to the actuator's
 max_angle; where the steering the loop asks for still passes the actuator's angle or rate limit
-the train folds (python -m benchmarks reversing says where).
+the train folds (python -m benchmarks reversing says where). ``design`` refuses, in one line with
+the reason, a train and speed whose loop with those limits folds or does not settle
+(envelope.holding); ``held_design`` tries gentler weights next (LADDER: the steering's rate
+weighed in the cost as well, r u^2 + rate psi'^2), the first the check holds and the dynamic level
+holds from the same start, which is what ``mta reverse`` takes when it is given no weight.
 """
 from __future__ import annotations
 
@@ -64,11 +68,13 @@ def heading_row(train) -> np.ndarray:
 
 
 def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 10.0, q_heading: float = 10.0,
-           r: float = 1.0, check: bool = True) -> Gains:
-    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0). Refused
-    (validate.InputError, one line): a train whose traction law ignores the speed
-    (spec.require_speed_law), and with ``check`` one whose loop with the actuator's limits folds or
-    does not settle from the start the controller is made for (envelope.holding)."""
+           r: float = 1.0, rate: float = 0.0, check: bool = True) -> Gains:
+    """The LQR gain for backing ``train`` along a straight line at ``speed`` (< 0); ``rate`` > 0 weighs
+    the steering's rate too, psi' = (u - psi) / tau (the actuator's, unsaturated): the cost's
+    r u^2 + rate psi'^2, a cross term of u and psi. Refused (validate.InputError, one line): a train
+    whose traction law ignores the speed (spec.require_speed_law), and with ``check`` one whose loop
+    with the actuator's limits folds or does not settle from the start the controller is made for
+    (envelope.holding)."""
     from scipy.linalg import solve_continuous_are
 
     require_speed_law(train, "the reversing controller")
@@ -80,19 +86,63 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
         Q[k, k] += q_hitch
     Q += 1e-9 * np.eye(len(Q))  # the steering angle's own weight: Q positive definite
     R = np.array([[r]])
-    P = solve_continuous_are(model.A, model.B, Q, R)
-    K = np.linalg.solve(R, model.B.T @ P)
+    if rate > 0.0:
+        w = rate / train.actuator.time_constant ** 2
+        Q[-1, -1] += w
+        R += w
+        N = np.zeros((len(Q), 1))
+        N[-1, 0] = -w
+        P = solve_continuous_are(model.A, model.B, Q, R, s=N)
+        K = np.linalg.solve(R, model.B.T @ P + N.T)
+    else:
+        P = solve_continuous_are(model.A, model.B, Q, R)
+        K = np.linalg.solve(R, model.B.T @ P)
     closed = np.linalg.eigvals(model.A - model.B @ K)
-    gains = Gains(speed, K, model.states, closed,
-                  {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}, C)
+    weights = {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}
+    gains = Gains(speed, K, model.states, closed, weights | ({"rate": rate} if rate > 0.0 else {}), C)
     if check:
         refuse_unheld(train, gains)
     return gains
 
 
-def refuse_unheld(train, gains: Gains) -> None:
-    """Refuse, in one line with the reason, a train and speed the loop of ``gains`` cannot hold
-    (envelope.holding)."""
+#: the weights ``held_design`` tries after the default ones, in order: (q_hitch = q_heading, r, rate), a
+#: gentler command each step (the steering's rate weighed, the hitches less): chosen against the
+#: saturated loop, which the linear design does not see (benchmarks/reversing.md, the envelope)
+LADDER = tuple((q, 1e-3, rate) for rate in (0.01, 0.1, 1.0, 10.0) for q in (10.0, 1.0, 0.1))
+
+
+def held_design(train, speed: float = -1.0) -> Gains:
+    """The first gain that holds ``train`` at ``speed``: the default weights where the check holds them
+    (envelope.holding), else the first of LADDER's that it holds and that hold on the dynamic level
+    from the same start as well (``holds_on_dynamic``: gentle gains near the edge of what they
+    hold can fold there); refused in one line with the default's reason when none does."""
+    from .envelope import holding
+
+    first = design(train, speed, check=False)
+    if not holding(train, first):
+        return first
+    for q, r, rate in LADDER:
+        gains = design(train, speed, q_hitch=q, q_heading=q, r=r, rate=rate, check=False)
+        if not holding(train, gains) and holds_on_dynamic(train, gains):
+            return gains
+    refuse_unheld(train, first, f" (nor with any of the {len(LADDER)} gentler weights tried)")
+    return first  # not reached
+
+
+def holds_on_dynamic(train, gains: Gains) -> bool:
+    """The loop of ``gains`` run on the dynamic level from the check's start (envelope.start_scene),
+    envelope.HORIZON m back, held as the check holds its own loop (envelope.run_holds): what
+    held_design asks of gentler weights besides the check (near the edge of what they hold, the
+    dynamic level's inertia and speed can fold a train the kinematic loop keeps:
+    benchmarks/reversing.md)."""
+    from .envelope import HORIZON, run_holds, start_scene
+
+    return run_holds(reverse(start_scene(train, gains.speed), gains, HORIZON), train.n)
+
+
+def refuse_unheld(train, gains: Gains, more: str = "") -> None:
+    """Refuse, in one line with the reason (and ``more``), a train and speed the loop of ``gains``
+    cannot hold (envelope.holding)."""
     from ...validate import fail, show
     from .envelope import START_HITCH, START_OFFSET, holding
 
@@ -100,7 +150,7 @@ def refuse_unheld(train, gains: Gains) -> None:
     if why:
         fail("speed", show(gains.speed), f"one the reversing loop holds for train '{train.name}' (its kinematic "
              f"loop with the actuator's angle and rate limits, from {START_OFFSET:g} m off the line with the "
-             f"hitches at +-{math.degrees(START_HITCH):g} deg): {why}", source=train.source)
+             f"hitches at +-{math.degrees(START_HITCH):g} deg): {why}{more}", source=train.source)
 
 
 def state_of(out) -> np.ndarray:

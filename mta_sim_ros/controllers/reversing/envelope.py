@@ -6,7 +6,8 @@ max_angle and the steering turns at most max_rate. Where the loop asks for more,
 the designed one and the train can fold. ``holding`` runs that loop before the train moves: the
 train's own kinematic equations (linear.equations on numbers: the chain the linear model is the
 derivative of, hitch offsets and all), the actuator psi' = clip((u - psi) / tau, +-max_rate), the
-command u = gains.command(x) clipped to max_angle and held over each controller tick; from the
+command u = gains.command(x) clipped to max_angle and held over each controller tick (rk4 steps
+resolving the actuator and the fastest hitch mode within it); from the
 start the controller is made for, START_OFFSET m to the side of the line with the hitches bent
 +-START_HITCH in turn (at most half a hitch's limit), reversing HORIZON m. It cannot hold the train where a hitch angle reaches
 its cart's max_hitch_angle (a jackknife) or the chain's geometry breaks (a cart's velocity angle
@@ -47,10 +48,14 @@ def holding(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
     limits = [cart.max_hitch_angle for cart in train.carts[1:]]
     C = gains.C
     steps = int(math.ceil(horizon / abs(V) / tick))
+    # rk4 steps within a tick: at most half the actuator's time constant and half the time the
+    # shortest cart takes to pass its own length (the fastest hitch mode, |V| / l_k)
+    sub = max(1, math.ceil(tick / min(0.5 * act.time_constant, 0.5 * min(geom.length) / abs(V))))
     for i in range(steps):
         u = gains.command(x, act.max_angle)
         try:
-            x = rk4(x, u, V, act.time_constant, act.max_rate, geom, tick)
+            for _ in range(sub):
+                x = rk4(x, u, V, act.time_constant, act.max_rate, geom, tick / sub)
         except (ValueError, ZeroDivisionError):  # math's sqrt of a negative: no chain there
             x = np.full_like(x, math.nan)
         if not np.all(np.isfinite(x)):
@@ -65,6 +70,16 @@ def holding(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
         return (f"after {horizon:g} m the last axle is {offset:.2f} m off the line and a hitch at "
                 f"{math.degrees(worst):.1f} deg: the loop does not settle")
     return ""
+
+
+def run_holds(run, n: int) -> bool:
+    """The check's verdict read off a run on the simulator (controller.ReverseRun of an n-cart train
+    from ``start_scene``): not stopped, and at its end the last axle within SETTLED m of the line and
+    every hitch straighter than START_HITCH."""
+    if run.stopped or not len(run.trace):
+        return False
+    end = run.trace[-1]
+    return abs(end[2]) <= SETTLED and all(abs(phi) <= START_HITCH for phi in end[3:3 + n - 1])
 
 
 def start(train) -> np.ndarray:
