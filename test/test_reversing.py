@@ -111,7 +111,7 @@ def test_a_train_the_loop_cannot_hold_is_refused_and_does_fold(speed, capsys):
 
     train = loader.load_train(resolve_config_path("trains/long_train.yaml"))
     with pytest.raises(InputError, match=r"^speed: .* must be one the reversing loop holds for train 'long_train' "
-                                         r".*: hitch \d reaches 9\d\.\d deg, past its 90 deg limit, after "):
+                                         r".*: hitch \d reaches 9\d\.\d deg, past its 90.0 deg limit, after "):
         reversing.design(train, speed)
     run = reversing.reverse(envelope.start_scene(train, speed), reversing.design(train, speed, check=False), 100.0)
     assert "jackknife" in run.stopped and run.distance < 30.0
@@ -135,6 +135,37 @@ def test_the_check_says_what_the_dynamic_level_does_on_generated_trains(n, seed)
         run = reversing.reverse(envelope.start_scene(train, speed), gains, 100.0, settle=30.0)
         assert (why == "") == envelope.run_holds(run, train.n), (speed, why, run.stopped, run.trace[-1])
         assert ("reaches" in why) == ("jackknife" in run.stopped)
+
+
+def test_a_circle_whose_steady_turn_bends_a_hitch_past_its_limit_is_refused(tmp_path, capsys):
+    """The default unit with its hitches limited to 45 deg: a 5 m circle of the last axle needs 61 deg
+    of hitch on its steady turn: design_curve and mta reverse --radius refuse it in one line."""
+    from mta_sim_ros import cli
+
+    train = yaml.safe_load(open(resolve_config_path("trains/default.yaml")))
+    for cart in train["carts"][1:]:
+        cart["max_hitch_angle_deg"] = 45
+    (tmp_path / "t45.yaml").write_text(yaml.safe_dump(train))
+    with pytest.raises(ValueError, match=r"^radius: 5 m bends hitch 3 to 61\.\d deg on its steady turn, past its "
+                                         r"45\.0 deg limit"):
+        reversing.design_curve(loader.load_train(str(tmp_path / "t45.yaml")), -1.0, 5.0)
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(backing_scene(train=str(tmp_path / "t45.yaml"))))
+    assert cli.main(["reverse", "--scene", str(tmp_path / "s.yaml"), "--radius", "5"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mta reverse: --radius: 5 m bends hitch 3"), err
+
+
+@pytest.mark.parametrize("psi0, u, tau", [(0.0, 0.5, 0.2), (0.3, -0.4, 0.2), (0.1, 0.12, 0.2), (0.0, 0.7, 0.001)])
+def test_the_checks_actuator_is_the_rate_limited_lag_in_closed_form(psi0, u, tau):
+    """envelope.steering_at against the actuator's equation integrated by scipy (rtol 1e-12): at the
+    rate limit, then the lag, or the lag alone."""
+    from scipy.integrate import solve_ivp
+
+    rate = 0.6
+    sol = solve_ivp(lambda t, y: [min(max((u - y[0]) / tau, -rate), rate)], (0.0, 2.0), [psi0], rtol=1e-12,
+                    atol=1e-14, dense_output=True, max_step=1e-3)
+    for t in np.linspace(0.0, 2.0, 201):
+        assert envelope.steering_at(psi0, u, tau, rate, t) == pytest.approx(sol.sol(t)[0], abs=1e-9)
 
 
 @pytest.mark.parametrize("n, seed, speed", [(2, 10, -3.0), (3, 17, -1.0), (4, 13, -1.0), (4, 12, -3.0)])

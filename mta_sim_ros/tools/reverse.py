@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..validate import Range, fail, number_arg, output_file, path_arg, show
+from ..validate import InputError, Range, fail, number_arg, output_file, path_arg, show
 
 SPEED = Range.of(-20.0, -0.05, "m/s")
 DISTANCE = Range.of(1.0, 10000.0, "m")
@@ -65,9 +65,13 @@ def main(args: argparse.Namespace) -> int:
     try:
         curve = None if args.radius is None else design_curve(
             train, args.speed, args.radius, 1.0 if args.side == "left" else -1.0, *weights)
-    except ValueError as err:  # a circle tighter than the train can follow
-        print(f"mta reverse: --radius: {err}", file=sys.stderr)
+    except ValueError as err:  # a circle tighter than the train can follow ("radius: ..."), or a train refused
+        print(f"mta reverse: --{err}" if str(err).startswith("radius: ") else f"mta reverse: {err}", file=sys.stderr)
         return 2
-    gains = design(train, args.speed, *weights) if given else held_design(train, args.speed)
+    try:
+        gains = design(train, args.speed, *weights) if given else held_design(train, args.speed)
+    except InputError as err:  # the speed the loop cannot hold is --speed's
+        print(f"mta reverse: --{err}" if str(err).startswith("speed: ") else f"mta reverse: {err}", file=sys.stderr)
+        return 2
     reverser = Reverser(train, gains, curve, args.distance, args.settle, args.side)
     return spin_and_report(lambda: ReverseNode(reverser), args.ros_args, args.report)

@@ -144,13 +144,15 @@ def refuse_unheld(train, gains: Gains, more: str = "") -> None:
     """Refuse, in one line with the reason (and ``more``), a train and speed the loop of ``gains``
     cannot hold (envelope.holding)."""
     from ...validate import fail, show
-    from .envelope import START_HITCH, START_OFFSET, holding
+    from .envelope import START_OFFSET, degrees, holding, start
 
     why = holding(train, gains)
     if why:
-        fail("speed", show(gains.speed), f"one the reversing loop holds for train '{train.name}' (its kinematic "
+        bent = max((abs(phi) for phi in start(train)[2:train.n + 1]), default=0.0)
+        of = f" ({train.source})" if train.source else ""
+        fail("speed", show(gains.speed), f"one the reversing loop holds for train '{train.name}'{of} (its kinematic "
              f"loop with the actuator's angle and rate limits, from {START_OFFSET:g} m off the line with the "
-             f"hitches at +-{math.degrees(START_HITCH):g} deg): {why}{more}", source=train.source)
+             f"hitches at +-{degrees(bent)} deg): {why}{more}")
 
 
 def state_of(out) -> np.ndarray:
@@ -270,15 +272,21 @@ def design_curve(train, speed: float, radius: float, side: float = 1.0, q_offset
                  q_hitch: float = 10.0, q_heading: float = 10.0, r: float = 1.0) -> CurveGains:
     """LQR about the steady turn that puts the last axle on a circle of ``radius`` (``side`` +1
     left, -1 right), reversing at ``speed`` < 0: the linear model about that turn (linear.py),
-    weights on the tractor's radial offset and heading and on each hitch angle's deviation; a train
-    whose traction law ignores the speed is refused (spec.require_speed_law)."""
+    weights on the tractor's radial offset and heading and on each hitch angle's deviation; refused
+    (ValueError): a train whose traction law ignores the speed (spec.require_speed_law), a circle
+    tighter than the steering allows, and one whose steady turn bends a hitch past its limit."""
     from scipy.linalg import solve_continuous_are
 
     require_speed_law(train, "the reversing controller")
 
     from ...physics.steady import steady_circle
+    from .envelope import degrees
 
     psi0 = math.copysign(steering_for(train, radius), side)
+    for k, (phi, cart) in enumerate(zip(steady_circle(train, psi0).hitch_angles, train.carts[1:]), start=2):
+        if abs(phi) >= cart.max_hitch_angle:
+            raise ValueError(f"radius: {radius:g} m bends hitch {k} to {degrees(abs(phi))} deg on its steady turn, "
+                             f"past its {degrees(cart.max_hitch_angle)} deg limit")
     model = linearize(train, "turn", speed, psi0)
     size = train.n + 2
     Q = np.zeros((size, size))

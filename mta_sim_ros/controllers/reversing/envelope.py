@@ -6,8 +6,8 @@ max_angle and the steering turns at most max_rate. Where the loop asks for more,
 the designed one and the train can fold. ``holding`` runs that loop before the train moves: the
 train's own kinematic equations (linear.equations on numbers: the chain the linear model is the
 derivative of, hitch offsets and all), the actuator psi' = clip((u - psi) / tau, +-max_rate), the
-command u = gains.command(x) clipped to max_angle and held over each controller tick (rk4 steps
-resolving the actuator and the fastest hitch mode within it); from the
+command u = gains.command(x) clipped to max_angle and held over each controller tick (the actuator
+in closed form, the chain by rk4 steps that resolve its fastest hitch mode); from the
 start the controller is made for, START_OFFSET m to the side of the line with the hitches bent
 +-START_HITCH in turn (at most half a hitch's limit), reversing HORIZON m. It cannot hold the train where a hitch angle reaches
 its cart's max_hitch_angle (a jackknife) or the chain's geometry breaks (a cart's velocity angle
@@ -48,9 +48,9 @@ def holding(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
     limits = [cart.max_hitch_angle for cart in train.carts[1:]]
     C = gains.C
     steps = int(math.ceil(horizon / abs(V) / tick))
-    # rk4 steps within a tick: at most half the actuator's time constant and half the time the
-    # shortest cart takes to pass its own length (the fastest hitch mode, |V| / l_k)
-    sub = max(1, math.ceil(tick / min(0.5 * act.time_constant, 0.5 * min(geom.length) / abs(V))))
+    # rk4 steps within a tick: at most half the time the shortest cart takes to pass its own length
+    # (the fastest hitch mode, |V| / l_k); the actuator in closed form, however quick
+    sub = max(1, math.ceil(tick / (0.5 * min(geom.length) / abs(V))))
     for i in range(steps):
         u = gains.command(x, act.max_angle)
         try:
@@ -59,17 +59,23 @@ def holding(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
         except (ValueError, ZeroDivisionError):  # math's sqrt of a negative: no chain there
             x = np.full_like(x, math.nan)
         if not np.all(np.isfinite(x)):
-            return f"the chain's geometry breaks after {abs(V) * (i + 1) * tick:.1f} m"
+            return f"the chain's geometry breaks after {abs(V) * (i + 1) * tick:.3g} m"
         for k, (phi, limit) in enumerate(zip(x[2:2 + n - 1], limits), start=2):
             if abs(phi) >= limit:
-                return (f"hitch {k} reaches {math.degrees(abs(phi)):.1f} deg, past its {math.degrees(limit):.0f} deg "
-                        f"limit, after {abs(V) * (i + 1) * tick:.1f} m")
+                return (f"hitch {k} reaches {degrees(abs(phi))} deg, past its {degrees(limit)} deg limit, after "
+                        f"{abs(V) * (i + 1) * tick:.3g} m")
     offset = abs(float(C @ x))
     worst = max((abs(p) for p in x[2:2 + n - 1]), default=0.0)
     if offset > SETTLED or worst > START_HITCH:
         return (f"after {horizon:g} m the last axle is {offset:.2f} m off the line and a hitch at "
-                f"{math.degrees(worst):.1f} deg: the loop does not settle")
+                f"{degrees(worst)} deg: the loop does not settle")
     return ""
+
+
+def degrees(angle: float) -> str:
+    """An angle in rad as degrees for a message: 0.1 deg, or three digits below 1 deg."""
+    value = math.degrees(angle)
+    return f"{value:.1f}" if value >= 1.0 else f"{value:.3g}"
 
 
 def run_holds(run, n: int) -> bool:
@@ -93,17 +99,33 @@ def start(train) -> np.ndarray:
 
 
 def rk4(x, u, V, tau, max_rate, geom, h) -> np.ndarray:
-    """One rk4 step of the kinematic train with the rate-limited actuator, the command u held."""
-    def f(z):
-        dz = np.array(equations(list(z), u, V, tau, 1.0, geom, "straight", math), dtype=float)
-        dz[-1] = min(max(dz[-1], -max_rate), max_rate)
-        return dz
+    """One rk4 step of the kinematic train, the command u held: the chain's states by rk4, the
+    steering psi by the actuator's closed form (``steering_at``), at each stage's time."""
+    psi0 = float(x[-1])
 
-    k1 = f(x)
-    k2 = f(x + 0.5 * h * k1)
-    k3 = f(x + 0.5 * h * k2)
-    k4 = f(x + h * k3)
-    return x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    def f(z, t):
+        return np.array(equations([*z, steering_at(psi0, u, tau, max_rate, t)], u, V, tau, 1.0, geom, "straight",
+                                  math)[:-1], dtype=float)
+
+    z = x[:-1]
+    k1 = f(z, 0.0)
+    k2 = f(z + 0.5 * h * k1, 0.5 * h)
+    k3 = f(z + 0.5 * h * k2, 0.5 * h)
+    k4 = f(z + h * k3, h)
+    return np.append(z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), steering_at(psi0, u, tau, max_rate, h))
+
+
+def steering_at(psi0: float, u: float, tau: float, max_rate: float, t: float) -> float:
+    """psi(t) of the actuator psi' = clip((u - psi) / tau, +-max_rate) from psi0, u held: at the rate
+    limit until |u - psi| = tau max_rate, then the lag's exponential."""
+    gap = u - psi0
+    band = tau * max_rate  # the gap below which the lag is within the rate limit
+    if abs(gap) > band:
+        ramp = (abs(gap) - band) / max_rate  # s at the rate limit
+        if t <= ramp:
+            return psi0 + math.copysign(max_rate * t, gap)
+        return u - math.copysign(band, gap) * math.exp(-(t - ramp) / tau)
+    return u - gap * math.exp(-t / tau)
 
 
 def start_scene(train, speed: float, duration: float = 1000.0):
