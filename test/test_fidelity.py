@@ -242,10 +242,12 @@ def test_auto_slip_rule_both_sides():
 
 
 def test_auto_never_picks_kinematic_without_a_commanded_speed():
+    """A constant force: no speed to prescribe, and none the predictions could read (the speed is what
+    force and resistances make of it): auto, asked for an error, takes slip and says why."""
     tr = trains.train(2, traction=Traction("constant", force=4e4))
     sc = trains.scene(tr, duration=20.0)
     choice = fidelity.choose(with_needs(sc, poses=10.0))
-    assert choice.level == "dynamic", choice.reason
+    assert choice.level == "slip" and "constant sets a force, not a speed" in choice.reason, choice.reason
 
 
 # -- where no prediction bounds the error: a towed train reversing ----------------------------------
@@ -270,8 +272,9 @@ def test_a_towed_train_reversing_has_no_bounded_prediction_and_auto_takes_slip()
     for bounded in (forward, alone):
         assert fidelity.unbounded(bounded) == ""
         assert all(math.isfinite(v) for v in fidelity.estimate(bounded)["dynamic"].values())
-    pushed = dataclasses.replace(trains.scene(trains.train(2, traction=Traction("constant", force=-2e4))), speed=None)
-    assert "reverses" in fidelity.unbounded(pushed)  # a constant force backwards: no set-point says so
+    for force in (-2e4, 0.0, 1.5e5):  # a force, not a speed: whatever it makes of the speed is not an input
+        pushed = dataclasses.replace(trains.scene(trains.train(1, traction=Traction("constant", force=force))))
+        assert "constant sets a force, not a speed" in fidelity.unbounded(pushed)
 
 
 @pytest.mark.slow

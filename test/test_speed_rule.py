@@ -133,3 +133,44 @@ def test_a_governed_train_follows_its_speed_commands_without_a_word(run):
     d = run.s.diagnostics()
     assert d.values["speed_commands_ignored"] == 0 and "ignored" not in d.message
     assert run.log.count("warning", "ignored") == 0
+
+
+def test_the_kinematic_level_is_refused_for_a_constant_law_by_check_as_by_run(constant, capsys):
+    (constant / "kin.yaml").write_text(SCENE + "fidelity: kinematic\n")
+    line = refused(capsys, "check", constant / "kin.yaml")
+    assert "fidelity: 'kinematic'" in line and "the kinematic level prescribes the speed" in line
+
+
+def test_a_field_run_refuses_speeds_it_cannot_drive_before_writing(tmp_path, capsys):
+    """A prescribed_speed train whose set speed (the working speed by default) is 0: one line naming
+    it, and no output folder made."""
+    write_train(tmp_path, "{law: prescribed_speed, set_speed: 0.0, response_time: 1.0}")
+    out = tmp_path / "out"
+    line = refused(capsys, "field", "run", REPO / "config" / "fieldwork" / "rectangle.yaml", "--train",
+                   tmp_path / "train.yaml", "--out", out)
+    assert line.startswith("mta field run: set_speed of train 'default_seeding_unit': 0.0 must be > 0 m/s"), line
+    assert not out.exists()
+
+
+def test_a_sweep_of_a_field_scene_refuses_a_constant_law_before_it_runs(constant, capsys):
+    (constant / "sweep.yaml").write_text(f"name: field_constant\ntrain: train.yaml\nscenes: "
+                                         f"[{REPO / 'config' / 'fieldwork' / 'rectangle.yaml'}]\n"
+                                         "sample: {method: grid}\nvary:\n  - path: carts[2].length\n    values: [5, 6]\n")
+    line = refused(capsys, "sweep", constant / "sweep.yaml", "--out", constant / "runs")
+    assert "forces.traction.law: 'constant'" in line and "implement controller commands a speed" in line
+    assert not (constant / "runs").exists()
+
+
+def test_mta_maneuver_reads_the_speed_the_loader_reads(constant):
+    """A manoeuvre that reads the speed, played on a constant-law scene by mta maneuver: the start's
+    speed, as the loader expands the same manoeuvre in a scene file (not the law's unused set_speed)."""
+    from mta_sim_ros.tools.maneuver import scene_with_maneuver
+
+    params = {"t0": 2.0, "angle": 0.25, "ramp_time": 1.0}
+    (constant / "turn.yaml").write_text(SCENE.replace("speed: -1.0", "speed: 3.0").replace(
+        "steering: {table: {time: [0], angle: [0]}}", "steering: {maneuver: headland_turn, params: "
+        "{t0: 2.0, angle: 0.25, ramp_time: 1.0}}"))
+    loaded = load_scene(str(constant / "turn.yaml"))
+    straight = dataclasses.replace(loaded, steering=Table(time=(0.0,), value=(0.0,)), maneuver="")
+    played = scene_with_maneuver(straight, "headland_turn", params)
+    assert played.steering == loaded.steering

@@ -40,9 +40,9 @@ import math
 import time
 from typing import Callable
 
-from ..physics.spec import unfollowed_speed
 from ..messages.decode import (TWIST_STAMPED_TYPE, CommandDecodeError, decode_ackermann, decode_bool, decode_twist,
                                decode_twist_stamped)
+from ..physics.spec import unfollowed_speed
 
 #: Largest speed set-point the node accepts, m/s (either sign); beyond it the value is clamped.
 SPEED_LIMIT = 50.0

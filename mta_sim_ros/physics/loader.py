@@ -257,6 +257,12 @@ def _speed_at(speed: Optional[spec.Table], initial: spec.Initial, traction: spec
     return lambda t: constant
 
 
+def speed_at(scene: spec.Scene) -> Callable[[float], float]:
+    """The speed a manoeuvre of ``scene`` reads, as the loader expands its own (``_speed_at``): for
+    ``mta maneuver``, which steers a loaded scene by another manoeuvre."""
+    return _speed_at(scene.speed, scene.initial, scene.train.traction)
+
+
 def _steering(top: Section, train: spec.Train, speed_at: Callable[[float], float]) -> tuple[spec.Table, str]:
     """The steering command table and the manoeuvre's name ("" for a table)."""
     s = top.section("steering", STEERING.keys, required=True)
@@ -410,9 +416,14 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None, recorded
     if grid is not None:
         _start_on(grid, train, initial, top)
     speed = _speed(top)
-    if speed is not None and spec.unfollowed_speed(train.traction):
-        top.fail("speed", top.values["speed"], f"left out for train '{train.name}': its "
-                 f"{spec.unfollowed_speed(train.traction)} (a speed is followed by law {' or '.join(spec.SPEED_LAWS)})")
+    ignored = spec.unfollowed_speed(train.traction)
+    followed_by = f"(a speed is followed by law {' or '.join(spec.SPEED_LAWS)})"
+    if speed is not None and ignored:
+        top.fail("speed", top.values["speed"], f"left out for train '{train.name}': its {ignored} {followed_by}")
+    fidelity = SCENE["fidelity"].read(top)
+    if fidelity == "kinematic" and ignored:  # the kinematic level prescribes the speed (kinematic.py)
+        top.fail("fidelity", fidelity, f"another level for train '{train.name}': the kinematic level prescribes "
+                 f"the speed, and its {ignored} {followed_by}")
     publish_rate = SCENE["publish_rate"].read(top)
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
     integrator = _integrator(top, publish_rate)
@@ -426,7 +437,7 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None, recorded
         integrator=integrator,
         publish_rate=publish_rate,
         maneuver=maneuver,
-        fidelity=SCENE["fidelity"].read(top),
+        fidelity=fidelity,
         needs=_needs(top),
         source=source,
         raw=data,

@@ -379,7 +379,8 @@ SCENE = Schema("Scene file", "top level", "What happens to a train: start pose, 
     Field("publish_rate", NUMBER, "the rate of ticks: the commands are sampled and the outputs written at this "
           "rate", "Hz", validate.PUBLISH_RATE, spec.Scene.publish_rate),
     Field("fidelity", CHOICE, "the model level: auto takes the cheapest that meets needs (docs/accuracy.md)",
-          choices=FIDELITY_CHOICES, default=spec.Scene.fidelity),
+          choices=FIDELITY_CHOICES, default=spec.Scene.fidelity, also="not kinematic for a train whose traction "
+          "law is constant (the kinematic level prescribes the speed)"),
     Field("needs", MAPPING, "the outputs the scene needs and their tolerances", default=None,
           default_text="not stated (auto keeps the dynamic level)", schema=NEEDS),
     Field("terrain", MAPPING, "the ground the train moves on: a plane or a height grid", default=None,

@@ -211,20 +211,22 @@ def scene_inputs(scene: Scene) -> SceneInputs:
 # -- predicted errors -----------------------------------------------------------------------------
 
 def unbounded(scene: Scene) -> str:
-    """'' where ``estimate``'s predictions bound the lower levels' errors; else why they cannot: a
-    train with towed carts that reverses (a speed set-point or the start's speed below 0, or a
-    constant traction force that pushes backwards). About straight motion its hitch modes are
-    -V / l_k (linear.straight_closed_form): backwards they grow, and so does any difference
-    between two levels, from the slip the no-slip levels leave out to rounding; no reading of the
-    inputs bounds that (docs/fidelity.md's reversing scene: 0.9 rad of hitch angle measured where
-    the inputs gave 0.03)."""
+    """'' where ``estimate``'s predictions bound the lower levels' errors; else why they cannot. A
+    constant traction force: the speed is whatever force and resistances make of it, not an input
+    (a force the resistances do not balance accelerates the train without end). A train with towed
+    carts that reverses (a speed set-point or the start's speed below 0): about straight motion its
+    hitch modes are -V / l_k (linear.straight_closed_form), backwards they grow, and so does any
+    difference between two levels, from the slip the no-slip levels leave out to rounding; no
+    reading of the inputs bounds that (docs/fidelity.md's reversing scene: 0.9 rad of hitch angle
+    measured where the inputs gave 0.03)."""
     tr = scene.train
+    if tr.traction.law == "constant":
+        return ("traction law constant sets a force, not a speed: the speed every prediction reads is not in the "
+                "scene's inputs")
     if tr.n < 2:
         return ""
     t = np.arange(0.0, scene.duration + 0.005, 0.01)
-    backwards = scene.initial.speed < 0.0 or float(np.min(_speeds_at(scene, t))) < 0.0 or (
-        tr.traction.law == "constant" and tr.traction.force < 0.0)
-    if not backwards:
+    if scene.initial.speed >= 0.0 and float(np.min(_speeds_at(scene, t))) >= 0.0:
         return ""
     return ("the scene reverses a towed train, whose hitch modes grow at |V| / l_k: no prediction from its inputs "
             "bounds a lower level's error")

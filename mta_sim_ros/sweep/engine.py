@@ -142,12 +142,10 @@ def run_field_scene(scene, train):
     implement-tracking loop steps the article's model)."""
     from ..controllers.implement.design import Settings
     from ..controllers.implement.work import work_field
-    from ..field.turning import implement_of
-    from ..physics.spec import require_speed_law
     from ..run.batch import RunResult
+    from .spec import worked_by
 
-    implement_of(train)  # a train without an implement is refused in one line
-    require_speed_law(train, "a field scene's implement controller")  # and one that cannot follow its speeds
+    worked_by(scene, train)  # no implement, no speed followed: refused in one line
     work = work_field(scene.field, train, scene.options(train), Settings(**scene.drive))
     trace = work.run.trace
     figures = dict(work.result.values, position_error_m=work.accuracy.error)  # the run's stated accuracy

@@ -54,6 +54,7 @@ import numpy as np
 from .. import validate
 from ..field.scene import field_scene_from_data, is_field_scene
 from ..physics import loader
+from ..physics.spec import Scene
 from ..validate import InputError, Range
 
 METHODS = ("grid", "random", "saltelli")
@@ -488,11 +489,29 @@ def _shown(f: Factor, value) -> str:
 
 def build(spec: Spec, scheme: tuple):
     """(train, [scene per spec scene]) of a scheme, checked by the loader (SpecError if refused); a
-    field scene is a field.scene.FieldScene, checked by its own loader (FieldError)."""
+    field scene is a field.scene.FieldScene, checked by its own loader (FieldError) and with the
+    train that works it: an implement, a traction law that follows the drive's speeds and speeds it
+    can drive (InputError)."""
     train_data, source, scenes = scheme_data(spec, scheme)
     train = loader.train_from_data(train_data, source)
-    return train, [field_scene_from_data(data, src) if is_field_scene(data) else loader.scene_from_data(data, src, train)
-                   for _, data, src in scenes]
+    built = [field_scene_from_data(data, src) if is_field_scene(data) else loader.scene_from_data(data, src, train)
+             for _, data, src in scenes]
+    for scene in built:
+        if not isinstance(scene, Scene):
+            worked_by(scene, train)
+    return train, built
+
+
+def worked_by(scene, train) -> None:
+    """Refuse (InputError, one line) ``train`` for the field scene: no implement, a traction law that
+    ignores the drive's speeds (spec.require_speed_law), speeds it cannot drive (Settings.speeds)."""
+    from ..controllers.implement.design import Settings
+    from ..field.turning import implement_of
+    from ..physics.spec import require_speed_law
+
+    implement_of(train)
+    require_speed_law(train, "a field scene's implement controller")
+    Settings(**scene.drive).speeds(train)
 
 
 def has_field_scenes(spec: Spec) -> bool:

@@ -114,6 +114,7 @@ def inputs(args: argparse.Namespace):
     train = load_train(resolve_config_path(args.train))
     implement_of(train)
     require_speed_law(train, "mta field run")
+    settings_of(args, scene).speeds(train)  # the drive's speeds, before any folder is made
     plan_path = plan_file(args.plan) if args.plan else None
     folder = output_folder(args.out or Path("runs") / field.name, "--out")
     paths = {name: folder / name for name in OUTPUTS}

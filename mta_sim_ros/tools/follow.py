@@ -119,6 +119,7 @@ def field_inputs(args: argparse.Namespace):
     path = plan_file(args.plan) if args.plan else None
     field_path = args.field or (planned_field(path) if path else None)
     scene = load_field_or_scene(resolve_config_path(field_path))
+    settings_of(args, scene).speeds(train)  # the drive's speeds, checked before planning
     if path is None:
         from ..field.plan import plan_field
 

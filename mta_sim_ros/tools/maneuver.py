@@ -29,8 +29,8 @@ from std_msgs.msg import Float64
 from ..config import resolve_config_path
 from ..node.ros_msgs import QOS
 from ..physics import maneuvers
-from ..physics.loader import SpecError, load_scene
-from ..run.simulation import speed_setpoint, table_value
+from ..physics.loader import SpecError, load_scene, speed_at
+from ..run.simulation import table_value
 from ..validate import DURATION, Range, number_arg
 
 
@@ -107,7 +107,7 @@ def scene_with_maneuver(scene, name: str, params: dict[str, float]):
     if name not in maneuvers.MANEUVERS:
         raise ValueError(f"--maneuver: {name!r} must be one of {', '.join(maneuvers.MANEUVERS)}")
     try:
-        table = maneuvers.expand(name, params, speed_at=lambda t: speed_setpoint(scene, t),
+        table = maneuvers.expand(name, params, speed_at=speed_at(scene),
                                  wheelbase=scene.train.carts[0].length, max_angle=scene.train.actuator.max_angle)
     except maneuvers.ParamError as err:
         raise ValueError(f"--param {err.param}: {err.value} must be {err.rule}") from None

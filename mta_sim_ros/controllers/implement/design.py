@@ -73,8 +73,17 @@ class Settings:
     step: float = 0.05  # s: rk4's step (through V = 0 at a cusp the resistances' smoothing is stiff)
 
     def speeds(self, train) -> tuple[float, float, float]:
-        """(working, turn, reversing) speeds, m/s, the last < 0."""
+        """(working, turn, reversing) speeds, m/s, the last < 0; refused in one line (InputError) where
+        the working or turn speed is not > 0 or the reversing speed is 0."""
         work = train.traction.set_speed if self.work_speed is None else self.work_speed
+        if not work > 0.0:
+            field = "work_speed" if self.work_speed is not None else f"set_speed of train '{train.name}'"
+            fail(field, show(work), "> 0 m/s: the working passes are driven forward at it" +
+                 (" (the working speed where work_speed is not given)" if self.work_speed is None else ""))
+        if not self.turn_speed > 0.0:
+            fail("turn_speed", show(self.turn_speed), "> 0 m/s: turns and transits are driven forward at it")
+        if not abs(self.reverse_speed) > 0.0:
+            fail("reverse_speed", show(self.reverse_speed), "not 0 m/s: the cusps of a turn are backed at it")
         return float(work), float(self.turn_speed), -abs(float(self.reverse_speed))
 
     def lead_time(self, train) -> float:
@@ -145,8 +154,6 @@ def controller(train, settings: Settings = Settings()) -> Controller:
     m, d, width = implement_of(train)
     require_speed_law(train, "the implement controller")
     speeds = settings.speeds(train)
-    if not (speeds[0] > 0.0 and speeds[1] > 0.0 and speeds[2] < 0.0):
-        fail("speeds", show(speeds), "working > 0, turn > 0 and reversing != 0 m/s")
     gains = tuple(design(train, v, settings) for v in speeds)
     return Controller(settings, speeds, gains, point_row(train, m, d), settings.lead_time(train),
                       guarded_steering(train, settings.hitch_margin), working_point_reach(train), m, d, width)
