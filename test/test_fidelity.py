@@ -294,8 +294,9 @@ def test_no_level_is_measured_above_its_prediction(name, carts):
     if carts:
         scene = dataclasses.replace(scene, train=random_train(carts, np.random.default_rng(carts)),
                                     initial=dataclasses.replace(scene.initial, hitch_angles=()))
-    rows, over = compare(scene, 1)
+    rows, over, unverified = compare(scene, 1)
     assert over == [], over
+    assert name == "reversing" or unverified == [], unverified  # forward, every run goes the whole way
     if name == "reversing":  # the dynamic level's row: no finite prediction bounds it
         assert all(cell.endswith("(inf)") for cell in rows[1][2:6]), rows[1]
 
@@ -312,7 +313,8 @@ def test_a_speed_the_governor_cannot_hold_rules_out_kinematic():
     choice = fidelity.choose(with_needs(fast, speed=1.0))
     assert choice.level == "dynamic" and why in choice.reason
     outs, _ = record(fast, "dynamic")
-    assert outs[-1].speed < 4.5 - 0.1  # what the rule says: the train does not reach it
+    settled = [o.speed for o in outs if o.t >= 20.0]  # what the rule says: it levels off below the set speed
+    assert max(settled) < 4.5 - 0.1 and max(settled) - min(settled) < 0.02, (min(settled), max(settled))
     strong = dataclasses.replace(fast, train=dataclasses.replace(tr, traction=dataclasses.replace(
         trains.GOVERNOR, max_power=1e6)))
     assert fidelity.unheld_speed(strong) == ""

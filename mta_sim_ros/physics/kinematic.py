@@ -35,8 +35,6 @@ from .dynamics import Model, StateLayout, Terms
 from .outputs import Outputs, kernel_outputs, reference_outputs
 from .spec import SPEED_LAWS, Traction, Train
 
-COMMANDED_SPEED_LAWS = SPEED_LAWS
-
 
 class KinematicModel:
     """The kinematic level (levels.Level): q' = G V(t) with V(t) prescribed; Terms (traction,
@@ -45,10 +43,10 @@ class KinematicModel:
     name = "kinematic"
 
     def __init__(self, train: Train, algorithm: int = 2):
-        if train.traction.law not in COMMANDED_SPEED_LAWS:
+        if train.traction.law not in SPEED_LAWS:
             raise ValueError(
                 f"fidelity kinematic: traction law {train.traction.law!r} of train '{train.name}' does not "
-                f"command a speed; the kinematic level needs one of {', '.join(COMMANDED_SPEED_LAWS)}")
+                f"command a speed; the kinematic level needs one of {', '.join(SPEED_LAWS)}")
         self.train = train
         self.algorithm = algorithm
         self.layout = StateLayout(train.n)

@@ -14,6 +14,12 @@ axle B_n from the line after ``--settle`` m, and stops the train (speed 0) once 
 ``--report``, written as JSON. A train that folds stops the node's run (its jackknife guard): the
 controller hears the halt on /diagnostics, reports what it measured until then with the node's
 reason (``stopped``) and exits 1.
+
+Before anything moves it refuses, in one line, exit 2: a train whose traction law ignores the speed;
+along the line, a train and speed whose loop with the actuator's limits folds or does not settle
+from the nominal start (controllers/reversing/envelope.py; with no weight given, gentler weights are
+tried first: controller.held_design); along a circle, one whose steady turn bends a hitch past its
+limit (the circle's own loop is not checked).
 """
 from __future__ import annotations
 
@@ -68,8 +74,9 @@ def main(args: argparse.Namespace) -> int:
     except ValueError as err:  # a circle tighter than the train can follow ("radius: ..."), or a train refused
         print(f"mta reverse: --{err}" if str(err).startswith("radius: ") else f"mta reverse: {err}", file=sys.stderr)
         return 2
-    try:
-        gains = design(train, args.speed, *weights) if given else held_design(train, args.speed)
+    try:  # along a circle the curve's gain steers (its steady turn checked above); the line's, checked, else
+        gains = (design(train, args.speed, *weights, check=False) if curve is not None else
+                 design(train, args.speed, *weights) if given else held_design(train, args.speed))
     except InputError as err:  # the speed the loop cannot hold is --speed's
         print(f"mta reverse: --{err}" if str(err).startswith("speed: ") else f"mta reverse: {err}", file=sys.stderr)
         return 2

@@ -16,7 +16,7 @@ line moved towards the train by the rest), and the command is clipped to the act
 max_angle; where the steering the loop asks for still passes the actuator's angle or rate limit
 the train folds (python -m benchmarks reversing says where). ``design`` refuses, in one line with
 the reason, a train and speed whose loop with those limits folds or does not settle
-(envelope.holding); ``held_design`` tries gentler weights next (LADDER: the steering's rate
+(envelope.unheld); ``held_design`` tries gentler weights next (LADDER: the steering's rate
 weighed in the cost as well, r u^2 + rate psi'^2), the first the check holds and the dynamic level
 holds from the same start, which is what ``mta reverse`` takes when it is given no weight.
 """
@@ -74,7 +74,7 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     r u^2 + rate psi'^2, a cross term of u and psi. Refused (validate.InputError, one line): a train
     whose traction law ignores the speed (spec.require_speed_law), and with ``check`` one whose loop
     with the actuator's limits folds or does not settle from the start the controller is made for
-    (envelope.holding)."""
+    (envelope.unheld)."""
     from scipy.linalg import solve_continuous_are
 
     require_speed_law(train, "the reversing controller")
@@ -101,58 +101,62 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     weights = {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}
     gains = Gains(speed, K, model.states, closed, weights | ({"rate": rate} if rate > 0.0 else {}), C)
     if check:
-        refuse_unheld(train, gains)
+        from .envelope import unheld
+
+        refuse(train, gains, unheld(train, gains))
     return gains
 
 
 #: the weights ``held_design`` tries after the default ones, in order: (q_hitch = q_heading, r, rate), a
-#: gentler command each step (the steering's rate weighed, the hitches less): chosen against the
-#: saturated loop, which the linear design does not see (benchmarks/reversing.md, the envelope)
+#: gentler command each step (the steering's rate weighed, the hitches less). A search against the
+#: saturated loop, which the linear design does not see, not a design that has the limits in it
+#: (benchmarks/reversing.md, the envelope)
 LADDER = tuple((q, 1e-3, rate) for rate in (0.01, 0.1, 1.0, 10.0) for q in (10.0, 1.0, 0.1))
 
 
 def held_design(train, speed: float = -1.0) -> Gains:
     """The first gain that holds ``train`` at ``speed``: the default weights where the check holds them
-    (envelope.holding), else the first of LADDER's that it holds and that hold on the dynamic level
+    (envelope.unheld), else the first of LADDER's that it holds and that hold on the dynamic level
     from the same start as well (``holds_on_dynamic``: gentle gains near the edge of what they
     hold can fold there); refused in one line with the default's reason when none does."""
-    from .envelope import holding
+    from .envelope import unheld
 
     first = design(train, speed, check=False)
-    if not holding(train, first):
+    why = unheld(train, first)
+    if not why:
         return first
     for q, r, rate in LADDER:
         gains = design(train, speed, q_hitch=q, q_heading=q, r=r, rate=rate, check=False)
-        if not holding(train, gains) and holds_on_dynamic(train, gains):
+        if not unheld(train, gains) and holds_on_dynamic(train, gains):
             return gains
-    refuse_unheld(train, first, f" (nor with any of the {len(LADDER)} gentler weights tried)")
+    refuse(train, first, why, f" (nor with any of the {len(LADDER)} gentler weights tried)")
     return first  # not reached
 
 
 def holds_on_dynamic(train, gains: Gains) -> bool:
-    """The loop of ``gains`` run on the dynamic level from the check's start (envelope.start_scene),
-    envelope.HORIZON m back, held as the check holds its own loop (envelope.run_holds): what
+    """The loop of ``gains`` run on the dynamic level from each of the check's starts
+    (envelope.start_scene), envelope.HORIZON m back, held as the check holds its own loop (envelope.run_holds): what
     held_design asks of gentler weights besides the check (near the edge of what they hold, the
     dynamic level's inertia and speed can fold a train the kinematic loop keeps:
     benchmarks/reversing.md)."""
-    from .envelope import HORIZON, run_holds, start_scene
+    from .envelope import HORIZON, patterns, run_holds, start_scene
 
-    return run_holds(reverse(start_scene(train, gains.speed), gains, HORIZON), train.n)
+    return all(run_holds(reverse(start_scene(train, gains.speed, pattern=p), gains, HORIZON), train.n)
+               for p in patterns(train))
 
 
-def refuse_unheld(train, gains: Gains, more: str = "") -> None:
-    """Refuse, in one line with the reason (and ``more``), a train and speed the loop of ``gains``
-    cannot hold (envelope.holding)."""
+def refuse(train, gains: Gains, why: str, more: str = "") -> None:
+    """Refuse (validate.InputError), in one line with ``why`` (envelope.unheld's reason; nothing when
+    it is '') and ``more``, a train and speed the loop of ``gains`` cannot hold from the check's
+    nominal start."""
     from ...validate import fail, show
-    from .envelope import START_OFFSET, degrees, holding, start
+    from .envelope import START_OFFSET
 
-    why = holding(train, gains)
     if why:
-        bent = max((abs(phi) for phi in start(train)[2:train.n + 1]), default=0.0)
         of = f" ({train.source})" if train.source else ""
         fail("speed", show(gains.speed), f"one the reversing loop holds for train '{train.name}'{of} (its kinematic "
-             f"loop with the actuator's angle and rate limits, from {START_OFFSET:g} m off the line with the "
-             f"hitches at +-{degrees(bent)} deg): {why}{more}")
+             f"loop with the actuator's angle and rate limits, from its nominal starts {START_OFFSET:g} m off the "
+             f"line) {why}{more}")
 
 
 def state_of(out) -> np.ndarray:

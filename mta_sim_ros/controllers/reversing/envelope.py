@@ -3,20 +3,23 @@
 The LQR gain (controller.design) stabilises the linear model about straight reversing, but the
 train it steers has an actuator the design leaves out of its limits: the command is clipped to
 max_angle and the steering turns at most max_rate. Where the loop asks for more, it is no longer
-the designed one and the train can fold. ``holding`` runs that loop before the train moves: the
+the designed one and the train can fold. ``unheld`` runs that loop before the train moves: the
 train's own kinematic equations (linear.equations on numbers: the chain the linear model is the
 derivative of, hitch offsets and all), the actuator psi' = clip((u - psi) / tau, +-max_rate), the
 command u = gains.command(x) clipped to max_angle and held over each controller tick (the actuator
-in closed form, the chain by rk4 steps that resolve its fastest hitch mode); from the
-start the controller is made for, START_OFFSET m to the side of the line with the hitches bent
-+-START_HITCH in turn (at most half a hitch's limit), reversing HORIZON m. It cannot hold the train where a hitch angle reaches
-its cart's max_hitch_angle (a jackknife) or the chain's geometry breaks (a cart's velocity angle
-passes 90 deg), or where after the horizon the last axle is not back within SETTLED m of the
-line, its hitches straighter than at the start.
+in closed form, the chain by rk4 steps that resolve its fastest hitch mode); from the nominal
+starts the controller is made for, START_OFFSET m to the side of the line with the hitches bent
+START_HITCH (at most half a hitch's limit) alternately either way and all one way either way
+(``patterns``: the sign of the hitches matters, a train held from one can fold from another),
+reversing HORIZON m from each. It cannot hold the train where a hitch angle reaches its cart's
+max_hitch_angle (a jackknife) or the chain's geometry breaks (a cart's velocity angle passes 90
+deg), or where after the horizon the last axle is not back within SETTLED m of the line, its
+hitches straighter than START_HITCH (it does not settle).
 
-What it leaves out (the check is necessary, not sufficient): the dynamic level's inertia and
-forces (the speed is held), the slip level's tyres. ``python -m benchmarks reversing`` holds its
-verdicts against the dynamic level's runs on generated trains.
+What it leaves out: the dynamic level's inertia and forces (the speed is held), the slip level's
+tyres, any start but its own (a train started farther out can fold where the check holds it).
+``python -m benchmarks reversing`` holds its verdicts against the dynamic level's runs on 96
+generated trains.
 """
 from __future__ import annotations
 
@@ -38,10 +41,41 @@ SETTLED = 0.05
 TICK = 0.02
 
 
-def holding(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
-    """'' when the loop of ``gains`` (controller.Gains) holds ``train`` (module docstring); else why
-    not, in one clause ("hitch 2 reaches 67.3 deg, past its 60 deg limit, after 11.2 m")."""
-    x = start(train)
+def unheld(train, gains, tick: float = TICK, horizon: float = HORIZON) -> str:
+    """'' when the loop of ``gains`` (controller.Gains) holds ``train`` from every one of its nominal
+    starts (``patterns``); else why not from the first that fails, in one clause ("from hitches
+    +2.0, +2.0 deg: hitch 2 reaches 67.3 deg, past its 60.0 deg limit, after 11.2 m")."""
+    for pattern in patterns(train):
+        why = unheld_from(train, gains, pattern, tick, horizon)
+        if why:
+            return f"{described(train, pattern)}: {why}"
+    return ""
+
+
+def described(train, pattern: tuple) -> str:
+    """A start of the check in words: "from hitches bent 2.0 deg alternately, the first +"."""
+    if train.n < 2:
+        return "from the start"
+    bent = degrees(max(abs(phi) for phi in start(train, pattern)[2:train.n + 1]))
+    first = "+" if pattern[0] > 0 else "-"
+    if train.n == 2 or len(set(pattern)) == 1:
+        return f"from hitches bent {first}{bent} deg" + (" all" if train.n > 2 else "")
+    return f"from hitches bent {bent} deg alternately, the first {first}"
+
+
+def patterns(train) -> list[tuple]:
+    """The signs of the start's hitch angles the check runs from, the train START_OFFSET m to the left
+    of the line (the mirror image, right with every sign turned, moves as the mirror image): bent
+    alternately either way, and all one way either way (one each for a single hitch)."""
+    m = train.n - 1
+    alternate = tuple((-1) ** k for k in range(m))
+    out = [alternate, tuple(-s for s in alternate), (1,) * m, (-1,) * m]
+    return list(dict.fromkeys(out))
+
+
+def unheld_from(train, gains, pattern: tuple, tick: float = TICK, horizon: float = HORIZON) -> str:
+    """``unheld`` from one start: the hitches bent START_HITCH with the signs ``pattern``."""
+    x = start(train, pattern)
     n, V = train.n, gains.speed
     geom = ChainGeometry.of(train)
     act = train.actuator
@@ -88,13 +122,14 @@ def run_holds(run, n: int) -> bool:
     return abs(end[2]) <= SETTLED and all(abs(phi) <= START_HITCH for phi in end[3:3 + n - 1])
 
 
-def start(train) -> np.ndarray:
-    """x = (y, th_1, phi_2..phi_n, psi) of the check's start: the whole train START_OFFSET m to the
-    side, the hitches at +START_HITCH, -START_HITCH, ... in turn, each at most half its limit."""
+def start(train, pattern: tuple | None = None) -> np.ndarray:
+    """x = (y, th_1, phi_2..phi_n, psi) of a start of the check: the whole train START_OFFSET m to the
+    side, the hitches at START_HITCH with the signs ``pattern`` (default: +, -, + ... in turn), each
+    at most half its limit."""
     x = np.zeros(train.n + 2)
     x[0] = START_OFFSET
-    x[2:train.n + 1] = [min(START_HITCH, 0.5 * cart.max_hitch_angle) * (-1) ** k
-                        for k, cart in enumerate(train.carts[1:])]
+    signs = pattern or patterns(train)[0]
+    x[2:train.n + 1] = [sign * min(START_HITCH, 0.5 * cart.max_hitch_angle) for sign, cart in zip(signs, train.carts[1:])]
     return x
 
 
@@ -128,12 +163,19 @@ def steering_at(psi0: float, u: float, tau: float, max_rate: float, t: float) ->
     return u - gap * math.exp(-t / tau)
 
 
-def start_scene(train, speed: float, duration: float = 1000.0):
-    """A scene of ``train`` at the check's start (``start``), reversing at ``speed`` on the dynamic
-    level, 50 Hz: what the check's verdict is held against (controller.reverse runs it)."""
+def start_scene(train, speed: float, duration: float = 1000.0, offset: float | None = None,
+                hitch: float | None = None, pattern: tuple | None = None):
+    """A scene of ``train`` at a start of the check (``start``, the hitches' signs ``pattern``),
+    reversing at ``speed`` on the dynamic level, 50 Hz: what the check's verdict is held against
+    (controller.reverse runs it). ``offset`` (m) and ``hitch`` (rad, every hitch bent the same way,
+    at most half its limit) give another start."""
     from ...physics import loader
 
-    x = start(train)
+    x = start(train, pattern)
+    if offset is not None:
+        x[0] = offset
+    if hitch is not None:
+        x[2:train.n + 1] = [math.copysign(min(abs(hitch), 0.5 * cart.max_hitch_angle), hitch) for cart in train.carts[1:]]
     data = {"name": "backing", "train": "unused.yaml", "duration": duration,
             "initial": {"y": float(x[0]), "speed": speed, "hitch_angles": [float(v) for v in x[2:train.n + 1]]},
             "steering": {"maneuver": "straight"}, "speed": speed, "integrator": {"method": "rk4", "step": 0.01},
