@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -136,6 +137,22 @@ def test_the_check_says_what_the_dynamic_level_does_on_generated_trains(n, seed)
             run = reversing.reverse(envelope.start_scene(train, speed, pattern=pattern), gains, 100.0, settle=30.0)
             assert (why == "") == envelope.run_holds(run, train.n), (speed, pattern, why, run.stopped, run.trace[-1])
             assert ("reaches" in why) == ("jackknife" in run.stopped)
+
+
+def test_a_start_the_check_folds_but_the_dynamic_level_holds_is_not_a_refusal():
+    """The envelope's one start (benchmarks/reversing.md) where the kinematic check folds a train the
+    dynamic level holds: a 3-cart train (the benchmark's seed, its fifth), -1 m/s, hitches bent -2/+2
+    deg. design confirms the check's fold on the dynamic level from that start before it refuses
+    (unheld_on_both): it accepts the train, and the run from that start holds."""
+    from benchmarks.common import random_train
+
+    rng = np.random.default_rng(20261207 + 3)
+    train = [random_train(3, rng) for _ in range(5)][-1]
+    gains = reversing.design(train, -1.0)  # not refused
+    assert re.search(r"^hitch 3 reaches 9\d\.\d deg, past its 90\.0 deg limit", envelope.unheld_from(train, gains, (-1, 1)))
+    run = reversing.reverse(envelope.start_scene(train, -1.0, pattern=(-1, 1)), gains, 100.0)
+    assert envelope.run_holds(run, 3) and run.distance >= 100.0
+    assert reversing.unheld_on_both(train, gains) == ""
 
 
 def test_a_circle_whose_steady_turn_bends_a_hitch_past_its_limit_is_refused(tmp_path, capsys):

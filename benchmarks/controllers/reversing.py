@@ -94,17 +94,16 @@ def row(label: str, run, radius: float | None = None, check: str = "-") -> tuple
 
 def straight(train, speed: float, start, gains=None, label: str = "") -> tuple:
     """The row of backing ``train`` from scene ``start`` with ``gains`` (the default design, unchecked),
-    with the controller's check of those gains (envelope.unheld: what mta reverse would say)."""
-    from mta_sim_ros.controllers.reversing.controller import design, reverse
-    from mta_sim_ros.controllers.reversing.envelope import unheld
+    with the controller's check of those gains (controller.unheld_on_both: what mta reverse would say)."""
+    from mta_sim_ros.controllers.reversing.controller import design, reverse, unheld_on_both
 
     gains = gains or design(train, speed, check=False)
     run = reverse(start, gains, 100.0, settle=30.0)
-    return row(label, run, check="holds" if not unheld(train, gains) else "refuses")
+    return row(label, run, check="holds" if not unheld_on_both(train, gains) else "refuses")
 
 
 HEADER = ["run", "reversed, m", "until within 5 cm, m", "max error after 30 m, cm", "RMS, cm", "largest hitch, deg",
-          "largest steering, deg", "ticks at max_angle, %", "the check (nominal start)", "verdict"]
+          "largest steering, deg", "ticks at max_angle, %", "mta reverse's check", "verdict"]
 
 
 def main(args) -> int:

@@ -21,7 +21,7 @@ from ..common import table
 #: generated trains per number of carts, the numbers of carts and the speeds they back at
 GENERATED = 12
 CARTS, SPEEDS = (2, 3, 4, 5), (-1.0, -3.0)
-HEADER = ["carts", "speed, m/s", "trains", "the check holds", "held on the dynamic level",
+HEADER = ["carts", "speed, m/s", "trains", "the check holds", "design accepts", "held on the dynamic level",
           "verdicts agree (starts)", "refused: a hitch at its limit", "of those, folded", "refused: does not settle",
           "of those, not held", "accepted, but not held", "held_design holds", "held with its weights from another start"]
 #: the held-out start held_design's weights are judged from (its own search ran from the nominal ones)
@@ -29,7 +29,7 @@ OTHER_OFFSET, OTHER_HITCH = 0.3, math.radians(1.0)
 
 
 def generated(per: int = GENERATED, seed: int = 20261207) -> tuple[list, dict]:
-    """(table rows, {(carts, speed): (share the check holds, share held, share held_design holds,
+    """(table rows, {(carts, speed): (share design accepts, share held, share held_design holds,
     share held with its weights from another start)})."""
     from mta_sim_ros.controllers.reversing import envelope
     from mta_sim_ros.controllers.reversing.controller import design, held_design
@@ -42,7 +42,7 @@ def generated(per: int = GENERATED, seed: int = 20261207) -> tuple[list, dict]:
         rng = np.random.default_rng(seed + n)
         trains = [random_train(n, rng) for _ in range(per)]
         for speed in SPEEDS:
-            c = dict.fromkeys(("checked", "held", "agree", "limit", "limit_folded", "unsettled", "unsettled_unheld",
+            c = dict.fromkeys(("checked", "accepted", "held", "agree", "limit", "limit_folded", "unsettled", "unsettled_unheld",
                                "accepted_unheld", "laddered", "other"), 0)
             starts = 0
             for train in trains:
@@ -58,13 +58,15 @@ def generated(per: int = GENERATED, seed: int = 20261207) -> tuple[list, dict]:
                     starts += 1
                 why, ok = next((w for w in whys if w), ""), all(oks)
                 c["checked"] += not why
+                accepted = accepts(train, speed)
+                c["accepted"] += accepted
                 c["held"] += ok
                 limit = "reaches" in why or "breaks" in why
                 c["limit"] += limit
                 c["limit_folded"] += limit and folded
                 c["unsettled"] += bool(why) and not limit
                 c["unsettled_unheld"] += bool(why) and not limit and not ok
-                c["accepted_unheld"] += not why and not ok
+                c["accepted_unheld"] += accepted and not ok
                 try:
                     chosen = held_design(train, speed)
                 except InputError:
@@ -73,9 +75,21 @@ def generated(per: int = GENERATED, seed: int = 20261207) -> tuple[list, dict]:
                 c["other"] += envelope.run_holds(dynamic_run(train, speed, chosen, OTHER_OFFSET, OTHER_HITCH), n)
             cells = {**c, "agree": f"{c['agree']} of {starts}"}
             rows.append((str(n), f"{speed:g}", str(per), *map(str, cells.values())))
-            figures[(n, speed)] = (c["checked"] / per, c["held"] / per, c["laddered"] / per, c["other"] / per)
+            figures[(n, speed)] = (c["accepted"] / per, c["held"] / per, c["laddered"] / per, c["other"] / per)
             print(rows[-1], flush=True)
     return rows, figures
+
+
+def accepts(train, speed: float) -> bool:
+    """Whether controller.design (mta reverse with the default weights) accepts ``train`` at ``speed``."""
+    from mta_sim_ros.controllers.reversing.controller import design
+    from mta_sim_ros.validate import InputError
+
+    try:
+        design(train, speed)
+    except InputError:
+        return False
+    return True
 
 
 def dynamic_run(train, speed: float, gains, offset: float | None = None, hitch: float | None = None,
@@ -93,11 +107,14 @@ def envelope_lines(rows: list) -> list[str]:
     return ["## The envelope on generated trains", "",
             f"{GENERATED} random trains per number of carts (lengths 2-7 m, each hitch 1.5 m ahead of to 2 m behind "
             "its cart's axle), backed 100 m from each of the check's nominal starts (0.5 m off the line, the hitches "
-            "bent 2 deg alternately and all one way, either sign) with the default weights. 'The check holds': `mta reverse` and `controllers.reversing.design` accept the "
-            "train at that speed (controllers/reversing/envelope.py); 'held': the dynamic level's run with the same "
+            "bent 2 deg alternately and all one way, either sign) with the default weights. 'The check holds': the kinematic check holds the train from every start "
+            "(controllers/reversing/envelope.py); 'design accepts': `mta reverse` and `controllers.reversing.design` "
+            "accept it, refusing only from a start the check fails and the dynamic level's run fails too "
+            "(controller.unheld_on_both); 'held': the dynamic level's run with the same "
             "gain does not fold and ends the 100 m within 5 cm of the line, its hitches within 2 deg (as the check "
             "holds its own loop), from every start; 'verdicts agree' counts starts. A refusal is a hitch reaching its limit in the check's loop ('folded': the dynamic "
-            "run jackknifed too) or a loop that does not settle by then. 'held_design': the default weights, else "
+            "run jackknifed too) or a loop that does not settle by then; 'accepted, but not held': design accepts the train, the "
+            "dynamic level folds it from a start the check holds. 'held_design': the default weights, else "
             "the first of controller.LADDER's gentler ones (the steering's rate weighed) that the check holds and "
             "the dynamic level holds from the nominal starts, what `mta reverse` takes when no weight is given; its "
             f"weights are then judged from a start they were not chosen on ({OTHER_OFFSET:g} m off the line, every "
@@ -115,7 +132,7 @@ def chart(figures: dict, path: Path) -> None:
         ax.plot(CARTS, [100 * figures[(n, speed)][1] for n in CARTS], "o-", color=colour,
                 label=f"held on the dynamic level, {speed:g} m/s")
         ax.plot(CARTS, [100 * figures[(n, speed)][0] for n in CARTS], "x--", color=colour,
-                label=f"accepted by the check, {speed:g} m/s")
+                label=f"accepted by design (the check, confirmed), {speed:g} m/s")
         ax.plot(CARTS, [100 * figures[(n, speed)][3] for n in CARTS], "s:", color=colour, alpha=0.6,
                 label=f"held with held_design's weights from another start, {speed:g} m/s")
     ax.set_xticks(CARTS)

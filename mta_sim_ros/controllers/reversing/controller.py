@@ -16,7 +16,8 @@ line moved towards the train by the rest), and the command is clipped to the act
 max_angle; where the steering the loop asks for still passes the actuator's angle or rate limit
 the train folds (python -m benchmarks reversing says where). ``design`` refuses, in one line with
 the reason, a train and speed whose loop with those limits folds or does not settle
-(envelope.unheld); ``held_design`` tries gentler weights next (LADDER: the steering's rate
+(envelope.unheld) from a start from which the dynamic level's run fails too (unheld_on_both);
+``held_design`` tries gentler weights next (LADDER: the steering's rate
 weighed in the cost as well, r u^2 + rate psi'^2), the first the check holds and the dynamic level
 holds from the same start, which is what ``mta reverse`` takes when it is given no weight.
 """
@@ -73,8 +74,8 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     the steering's rate too, psi' = (u - psi) / tau (the actuator's, unsaturated): the cost's
     r u^2 + rate psi'^2, a cross term of u and psi. Refused (validate.InputError, one line): a train
     whose traction law ignores the speed (spec.require_speed_law), and with ``check`` one whose loop
-    with the actuator's limits folds or does not settle from the start the controller is made for
-    (envelope.unheld)."""
+    with the actuator's limits folds or does not settle from a start the controller is made for, on
+    the kinematic check and the dynamic level both (unheld_on_both)."""
     from scipy.linalg import solve_continuous_are
 
     require_speed_law(train, "the reversing controller")
@@ -101,9 +102,7 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     weights = {"q_offset": q_offset, "q_hitch": q_hitch, "q_heading": q_heading, "r": r}
     gains = Gains(speed, K, model.states, closed, weights | ({"rate": rate} if rate > 0.0 else {}), C)
     if check:
-        from .envelope import unheld
-
-        refuse(train, gains, unheld(train, gains))
+        refuse(train, gains, unheld_on_both(train, gains))
     return gains
 
 
@@ -115,14 +114,14 @@ LADDER = tuple((q, 1e-3, rate) for rate in (0.01, 0.1, 1.0, 10.0) for q in (10.0
 
 
 def held_design(train, speed: float = -1.0) -> Gains:
-    """The first gain that holds ``train`` at ``speed``: the default weights where the check holds them
-    (envelope.unheld), else the first of LADDER's that it holds and that hold on the dynamic level
+    """The first gain that holds ``train`` at ``speed``: the default weights where they are not refused
+    (unheld_on_both), else the first of LADDER's that it holds and that hold on the dynamic level
     from the same start as well (``holds_on_dynamic``: gentle gains near the edge of what they
     hold can fold there); refused in one line with the default's reason when none does."""
     from .envelope import unheld
 
     first = design(train, speed, check=False)
-    why = unheld(train, first)
+    why = unheld_on_both(train, first)
     if not why:
         return first
     for q, r, rate in LADDER:
@@ -131,6 +130,36 @@ def held_design(train, speed: float = -1.0) -> Gains:
             return gains
     refuse(train, first, why, f" (nor with any of the {len(LADDER)} gentler weights tried)")
     return first  # not reached
+
+
+def unheld_on_both(train, gains: Gains) -> str:
+    """'' when the loop of ``gains`` holds ``train``; else why not, from the first of the check's starts
+    (envelope.patterns) where the kinematic check fails (envelope.unheld_from) and the dynamic level's
+    run from the same start, envelope.HORIZON m back, fails as well (envelope.run_holds): a refusal is
+    a case the loop, run on the dynamic level, really cannot hold. The check alone is cautious at
+    the edge (benchmarks/reversing.md: a 3-cart train whose kinematic loop folds after 30 m, held by
+    the dynamic level); the dynamic run costs a fraction of a second and runs only where the check
+    fails."""
+    from .envelope import HORIZON, described, patterns, run_holds, start_scene, unheld_from
+
+    for pattern in patterns(train):
+        why = unheld_from(train, gains, pattern)
+        if why:
+            run = reverse(start_scene(train, gains.speed, pattern=pattern), gains, HORIZON)
+            if not run_holds(run, train.n):
+                return f"{described(train, pattern)}: {why}; on the dynamic level {failure(run)}"
+    return ""
+
+
+def failure(run: ReverseRun) -> str:
+    """How a run that envelope.run_holds does not hold ended, in a clause."""
+    from .envelope import degrees
+
+    if run.stopped:
+        return f"it stops after {run.distance:.3g} m: {run.stopped.split(';')[0]}"  # the guard's first clause
+    end = run.trace[-1] if len(run.trace) else np.zeros(4)
+    worst = max((abs(phi) for phi in end[3:-1]), default=0.0)
+    return f"it ends {abs(end[2]):.2f} m off the line, a hitch at {degrees(worst)} deg"
 
 
 def holds_on_dynamic(train, gains: Gains) -> bool:
@@ -146,17 +175,17 @@ def holds_on_dynamic(train, gains: Gains) -> bool:
 
 
 def refuse(train, gains: Gains, why: str, more: str = "") -> None:
-    """Refuse (validate.InputError), in one line with ``why`` (envelope.unheld's reason; nothing when
-    it is '') and ``more``, a train and speed the loop of ``gains`` cannot hold from the check's
-    nominal start."""
+    """Refuse (validate.InputError), in one line with ``why`` (unheld_on_both's reason; nothing when
+    it is '') and ``more``, a train and speed the loop of ``gains`` cannot hold from one of the
+    check's nominal starts."""
     from ...validate import fail, show
     from .envelope import START_OFFSET
 
     if why:
         of = f" ({train.source})" if train.source else ""
         fail("speed", show(gains.speed), f"one the reversing loop holds for train '{train.name}'{of} (its kinematic "
-             f"loop with the actuator's angle and rate limits, from its nominal starts {START_OFFSET:g} m off the "
-             f"line) {why}{more}")
+             f"loop with the actuator's angle and rate limits, then the dynamic level, from its nominal starts "
+             f"{START_OFFSET:g} m off the line) {why}{more}")
 
 
 def state_of(out) -> np.ndarray:
