@@ -27,14 +27,18 @@ class Parser(argparse.ArgumentParser):
 def check_main(args: argparse.Namespace) -> int:
     """The files by the loader's rules, and what a run builds from them beyond those: the robot
     model (its frames and joints named after the carts), so check refuses what run, urdf and the
-    node would."""
+    node would; a note where a scene's set speed is one its governor cannot hold (the level
+    chooser's prediction, run.fidelity.unheld_speed: a run's report says whether it did)."""
     from .config import resolve_config_path
     from .messages.urdf import robot_model
     from .physics.loader import check_files
     from .physics.spec import Scene
+    from .run.fidelity import unheld_speed
 
-    def built(loaded) -> None:
+    def built(loaded) -> list[str]:
         robot_model(loaded.train if isinstance(loaded, Scene) else loaded)
+        unheld = unheld_speed(loaded) if isinstance(loaded, Scene) else ""
+        return [f"speed: {unheld} (a run's report, set speed held, says whether it did)"] if unheld else []
 
     return check_files([resolve_config_path(f) for f in args.files], built)
 

@@ -61,6 +61,7 @@ from ..messages.urdf import frame_prefix, robot_model
 from ..physics.guards import ModelValidityError
 from ..physics.loader import SpecError, load_scene
 from ..run.companion import Companion, budget_steps, tick_seconds
+from ..run.following import GovernorWatch
 from ..run.margins import MarginGauge
 from ..run.simulation import Simulation
 from ..validate import InputError, show
@@ -176,7 +177,14 @@ class RunSession:
         if sim.stability_note:  # the configured step is past the method's stability limit
             self.log.warning(sim.stability_note)
         self.companion = Companion(sim, dict(options, fidelity=sim.level, split_kinks=sim.split_kinks))
+        self._watch_governor(sim)
         return sim
+
+    def _watch_governor(self, sim: Simulation) -> None:
+        """A new run's GovernorWatch: whether the governor holds the set speed (/diagnostics, said
+        once a run in the log)."""
+        self.governor = GovernorWatch(self.scene.train.traction, prescribed=sim.level == "kinematic")
+        self.governor_said = False
 
     def _within_budget(self, sim: Simulation, options: dict) -> Simulation:
         """``sim``, or where the steps its tolerance chose do not fit the wall clock's tick (run and
@@ -348,6 +356,7 @@ class RunSession:
         out = self.sim.outputs()
         self.companion.follow(self.sim, out)  # the run's error estimate (run/companion.py)
         out.t = self.now
+        self.governor.add(out)
         profile.mark("outputs")
         msgs = self.messages.of_tick(out)  # CDR bytes: the same bytes go to DDS and to the bag
         profile.mark("encode")
@@ -420,6 +429,7 @@ class RunSession:
             self.log.info(f"fidelity {self.sim.choice.reason}")
         self.sim.reset()
         self.companion.reset()
+        self._watch_governor(self.sim)
         self.inputs.restart(self.scene.initial.steering, self.sim.v_set)
         self.halted = ""
         self.pace.restart(self.now)  # lockstep: step 1 again
@@ -534,6 +544,7 @@ class RunSession:
             "lockstep": self.lockstep,
             "implement_lowered": self.inputs.lowered,
             "speed_commands_ignored": self.inputs.speed_ignored,
+            "governor_at_limit_s": self.governor.spell,
             "position_error_estimate_m": self.companion.error,
             "position_tolerance_m": self.companion.tolerance,
         }
@@ -548,7 +559,8 @@ class RunSession:
         values.update({"rollover_margin": margins.rollover, "tip_margin": margins.tip, "grip_margin": margins.grip})
         over = self.companion.error > self.companion.tolerance
         problems = [recorder.error if recorder else "", *self.inputs.problems(), *pace_problems, self.budget_note,
-                    self.companion.stopped, self.companion.line() if over else "", *margins.problems()]
+                    self.companion.stopped, self.companion.line() if over else "", *margins.problems(),
+                    self.governor.problem()]
         if self.watchdog.stale():
             problems.append(f"steering command stale ({steering.age():.1f} s): {self.cfg['watchdog_action']}")
         return status(self.halted, problems, values)
@@ -559,6 +571,9 @@ class RunSession:
         if self.recorder is not None and self.recorder.error not in ("", self.logged_bag_error):
             self.logged_bag_error = self.recorder.error
             self.log.error(self.recorder.error)
+        if self.governor.problem() and not self.governor_said:  # once a run; /diagnostics while it lasts
+            self.governor_said = True
+            self.log.warning(self.governor.problem())
         s = self.diagnostics()
         data = self.messages.enc.diagnostics(self.now, f"{self.name}: simulation", s.level, s.message, s.values)
         self.publish({"/diagnostics": data})

@@ -491,16 +491,18 @@ def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
 def check_files(paths: Iterable[Union[str, os.PathLike]], also: Optional[Callable] = None) -> int:
     """Check each file, print ``ok: PATH`` or ``error: MESSAGE``; exit code 0, or 2 on a fault.
     ``also(loaded)``: what else a run builds from it (the command's: the robot model's frames),
-    raising InputError where it cannot, so check refuses what a run would."""
+    raising InputError where it cannot, so check refuses what a run would; what it returns (lines)
+    is printed after the ok as ``note: PATH: LINE`` (what a run will not do as the file asks)."""
     status = 0
     for path in paths:
         try:
             loaded = load_file(path)
-            if also is not None:
-                also(loaded)
+            notes = also(loaded) if also is not None else None
         except validate.InputError as error:
             print(f"error: {error}", file=sys.stderr)
             status = 2
         else:
             print(f"ok: {path}")
+            for note in notes or ():
+                print(f"note: {path}: {note}")
     return status

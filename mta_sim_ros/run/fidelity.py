@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..physics.spec import FIDELITY_LEVELS, Scene, Train
+from ..physics.spec import FIDELITY_LEVELS, Scene, Train, governor_limit
 
 LEVELS = FIDELITY_LEVELS
 #: the outputs a scene's needs name (spec.Needs), each level's prediction per output
@@ -165,10 +165,11 @@ def unheld_speed(scene: Scene, dt: float = 0.5) -> str:
         y[L.heading] += uphill if v > 0.0 else uphill + math.pi
         tm = dyn.terms(y, psi, v)
         needed = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term + sum(tm.grade)
-        limit = min(law.max_force, law.max_power / max(abs(v), 0.1))
+        limit = governor_limit(law, v)
         if abs(needed) > limit:
-            return (f"the governor cannot hold {v:g} m/s: the steady force it needs, {abs(needed):.4g} N, is over its "
-                    f"limit min(max_force, max_power / |V|) = {limit:.4g} N")
+            where = " uphill along the plane's fall line" if dyn.P[kernel.H.slope] else ""
+            return (f"the governor cannot hold {v:g} m/s{where}: the steady force it needs, {abs(needed):.4g} N, is "
+                    f"over its limit min(max_force, max_power / |V|) = {limit:.4g} N")
     return ""
 
 

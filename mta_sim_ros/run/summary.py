@@ -27,6 +27,7 @@ class RunSummary:
     min_tip: float = math.inf  # the tractor's smallest tip margin (inf: not known)
     min_grip: float = math.inf  # the smallest grip margin of a no-slip axle (inf: not known)
     min_grip_axle: str = ""
+    governor: object = None  # run.following.GovernorWatch of the train's traction: whether it held its set speed
     _last: object = None
 
     def add(self, out) -> None:
@@ -46,6 +47,8 @@ class RunSummary:
         self.min_jackknife_margin = min(self.min_jackknife_margin, out.jackknife_margin)
         if self.stance is not None and not self.stance.level:
             self._add_stance(out.heading, out.front[0])
+        if self.governor is not None:
+            self.governor.add(out)
         self._last = out
 
     def _add_stance(self, heading, a1) -> None:
@@ -102,6 +105,8 @@ class RunSummary:
             rows.append(("smallest grip margin", f"{self.min_grip:.3f} ({self.min_grip_axle}; 1 no lateral force, 0 "
                          "the tyres slide)" + (f"; below 0 the no-slip model does not hold: {self._slip_advice()}"
                                                if self.min_grip < 0 else "")))
+        if self.governor is not None and self.governor.row():
+            rows.append(("set speed held", self.governor.row()))
         rows.extend((extra or {}).items())
         lines = [f"# {title}", "", "| quantity | value |", "|---|---|"]
         lines += [f"| {k} | {v} |" for k, v in rows]

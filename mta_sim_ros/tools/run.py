@@ -29,6 +29,7 @@ from ..physics.loader import load_scene
 from ..physics.spec import INTEGRATOR_METHODS
 from ..physics.terrain import Stance
 from ..run.fidelity import LEVELS, choose
+from ..run.following import GovernorWatch
 from ..run.margins import MarginGauge
 from ..run.accuracy import settle
 from ..run.simulation import run_scene
@@ -74,9 +75,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 class Progress:
     """A one-line progress bar on a terminal; silent otherwise."""
 
-    def __init__(self, total: float, stream=sys.stderr):
-        self.total, self.stream = total, stream
-        self.enabled = stream.isatty()
+    def __init__(self, total: float, stream=None):
+        self.total, self.stream = total, stream or sys.stderr  # the stderr of the call, not of the import
+        self.enabled = self.stream.isatty()
         self._last = -1
 
     def update(self, t: float) -> None:
@@ -215,7 +216,8 @@ def simulate(args: argparse.Namespace, scene, choice, options: dict, bag_path: P
     joint_states, odom, robot_description; the latched ones at t = 0)."""
     cart_names = [c.name for c in scene.train.carts]
     tick = 1.0 / options["rate"]
-    summary = RunSummary(tuple(cart_names), stance=Stance(scene.train))
+    summary = RunSummary(tuple(cart_names), stance=Stance(scene.train),
+                         governor=GovernorWatch(scene.train.traction, prescribed=choice.level == "kinematic"))
     progress = Progress(scene.duration)
     started = time.perf_counter()
     try:

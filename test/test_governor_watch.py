@@ -1,0 +1,111 @@
+"""A set speed the governor cannot hold is said (issue 25): mta check notes it from the scene's inputs
+(run.fidelity.unheld_speed), a run's report says for how long and by how much it was not held
+(run.following.GovernorWatch in run.summary), the node's /diagnostics warns while it lasts and its
+log says it once a run. Held against the balance law: on the level and straight, at its power limit
+the governor pulls max_power / V, so the train settles where that equals the resistance,
+V* = max_power / R."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from test_session import REPO, Run, run  # noqa: F401 (run: the fixture)
+
+from mta_sim_ros import cli
+from mta_sim_ros.node.status import OK, WARN
+from mta_sim_ros.physics.loader import load_scene
+from mta_sim_ros.run.following import HOLD, GovernorWatch
+from mta_sim_ros.run.simulation import Simulation
+
+G = 9.80665  # physics.spec's standard gravity
+#: trains/default.yaml: rolling f m g of its three carts and the seeder's 2.5 kN/m over 12 m, N
+RESISTANCE = G * (0.08 * 16000 + 0.10 * 10000 + 0.09 * 8000) + 2500 * 12
+MAX_POWER, MAX_FORCE = 250000.0, 125000.0
+SET = 6.0  # m/s: past max_power / RESISTANCE = 4.21 m/s
+SCENE = (f"name: too_fast\ntrain: {REPO / 'config' / 'trains' / 'default.yaml'}\nduration: 30\n"
+         "initial: {speed: 3.0}\nsteering: {maneuver: straight}\n"
+         f"speed: {SET}\nintegrator: {{method: rk4, step: 0.01}}\npublish_rate: 50\nfidelity: dynamic\n")
+
+
+@pytest.fixture
+def too_fast(tmp_path) -> Path:
+    (tmp_path / "too_fast.yaml").write_text(SCENE)
+    return tmp_path / "too_fast.yaml"
+
+
+def test_the_watch_reads_the_power_limit_the_balance_law_predicts(too_fast):
+    """30 s at a set speed of 6 m/s from 3 m/s: the governor reaches its limit within a second or two
+    (its integral starts at the balance of 3 m/s and grows at ki (6 - V)), then stays there, the
+    train settling at V* = max_power / R (the time constant M V* / R = 2.4 s: e^-11 by the end),
+    short by 6 - V*."""
+    scene = load_scene(str(too_fast))
+    sim, watch = Simulation(scene), GovernorWatch(scene.train.traction)
+    watch.add(sim.outputs())
+    while sim.t < scene.duration - 1e-9:
+        sim.advance(0.0, SET)
+        watch.add(sim.outputs())
+    v_star = MAX_POWER / RESISTANCE
+    assert watch.speed == pytest.approx(v_star, rel=1e-5)
+    assert watch.limit == pytest.approx(RESISTANCE, rel=1e-5)
+    assert SET - v_star < watch.shortfall < SET - 3.0
+    assert 26.0 < watch.total < 30.0 and watch.longest == watch.total == watch.spell  # one spell, to the end
+    assert watch.problem().startswith(f"the governor cannot hold the set speed 6 m/s: at its limit min(max_force, "
+                                      f"max_power / |V|) = {RESISTANCE:.4g} N for {watch.total:.1f} s, the speed "
+                                      f"{v_star:.3g} m/s")
+
+
+def test_check_notes_it_and_the_report_says_it(too_fast, tmp_path, capsys):
+    assert cli.main(["check", str(too_fast)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    limit = MAX_POWER / SET
+    assert out[1] == (f"note: {too_fast}: speed: the governor cannot hold 6 m/s: the steady force it needs, "
+                      f"{RESISTANCE:.4g} N, is over its limit min(max_force, max_power / |V|) = {limit:.4g} N (a run's "
+                      "report, set speed held, says whether it did)")
+    for level, said in (("dynamic", "| set speed held | no: the governor at its limit min(max_force, max_power / |V|) "
+                                     "for 2"),
+                        ("kinematic", "| set speed held | not by a governor: the force the kinematic level takes to "
+                                      "prescribe it is over the governor's limit")):
+        report = tmp_path / f"{level}.md"
+        assert cli.main(["run", "--scene", str(too_fast), "--fidelity", level, "--bag", str(tmp_path / f"{level}.mcap"),
+                         "--report", str(report), "--quiet"]) == 0
+        assert said in report.read_text(), report.read_text()
+
+
+def test_a_scene_the_governor_holds_says_so(tmp_path, capsys):
+    report = tmp_path / "r.md"
+    assert cli.main(["run", "--scene", "scenes/headland_turn.yaml", "--bag", str(tmp_path / "r.mcap"),
+                     "--report", str(report), "--quiet"]) == 0
+    assert "| set speed held | yes: the governor within its limit throughout |" in report.read_text()
+    assert cli.main(["check", "scenes/headland_turn.yaml"]) == 0
+    assert "note:" not in capsys.readouterr().out
+
+
+def test_the_node_warns_while_it_lasts_and_logs_it_once_a_run(too_fast, tmp_path):
+    r = Run(tmp_path, scene_file=str(too_fast))
+    said = "the governor cannot hold the set speed 6 m/s"
+    r.ticks(int(0.9 * HOLD * 50))  # an acceleration at full force shorter than HOLD: not said
+    r.s.publish_diagnostics()
+    d = r.s.diagnostics()
+    assert said not in d.message and 0.0 < d.values["governor_at_limit_s"] < HOLD
+    r.ticks(int((0.1 * HOLD + 3.0) * 50))  # at its limit within 3 s of the start (above): HOLD s at it by now
+    for _ in range(3):
+        r.s.publish_diagnostics()
+    d = r.s.diagnostics()
+    assert d.level == WARN and said in d.message and d.values["governor_at_limit_s"] >= HOLD
+    assert r.log.count("warning", said) == 1
+    r.s.command("speed_setpoint", 3.0)  # within the limit: the spell ends
+    r.ticks(50)
+    d = r.s.diagnostics()
+    assert said not in d.message and d.values["governor_at_limit_s"] == 0.0
+    r.s.reset()
+    r.ticks(int((HOLD + 3.0) * 50))
+    r.s.publish_diagnostics()
+    assert r.log.count("warning", said) == 2  # a new run says it again, once
+    r.s.close()
+
+
+def test_a_governor_within_its_limit_says_nothing(run):
+    run.ticks(int(1.5 * HOLD * 50))
+    d = run.s.diagnostics()
+    assert d.level == OK and d.values["governor_at_limit_s"] == 0.0 and not math.isnan(d.values["governor_at_limit_s"])
