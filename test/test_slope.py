@@ -109,6 +109,24 @@ def test_extra_traction_power_on_a_grade_at_steady_speed():
     assert powers[Plane(grade, 0.0)] - powers[None] == pytest.approx(expect, rel=1e-6)
 
 
+@pytest.mark.parametrize("grade, cross", [(0.05, 0.0), (-0.04, 0.0), (0.03, 0.12)])
+def test_the_governor_starts_in_equilibrium_on_a_slope(grade, cross):
+    """A scene starting at its set speed starts in equilibrium (simulation.initial_state): the
+    governor's integral balances the resistances and the grade's m g sin(a), so the speed holds
+    from the first tick (it dipped by a tenth before the grade was counted) and the traction at
+    t = 0 is the steady one a minute later."""
+    tr = on(trains.train(3), grade, cross)
+    sim = Simulation(trains.scene(tr, duration=60.0, rate=5.0))
+    first = sim.outputs()
+    speeds = []
+    for _ in range(50):
+        sim.advance(0.0, 3.0)
+        speeds.append(sim.outputs().speed)
+    assert first.speed == 3.0 and max(abs(v - 3.0) for v in speeds) < 1e-9
+    steady, err = run_scene(trains.scene(tr, duration=60.0, rate=5.0))
+    assert err is None and first.traction == pytest.approx(steady.outputs().traction, rel=1e-9)
+
+
 # -- energy: traction work = kinetic + potential + resistances ---------------------------------
 @pytest.mark.parametrize("law", ["governor", "constant"])
 def test_energy_balance_with_the_potential_energy(law):
