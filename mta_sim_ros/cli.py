@@ -27,8 +27,9 @@ class Parser(argparse.ArgumentParser):
 def check_main(args: argparse.Namespace) -> int:
     """The files by the loader's rules, and what a run builds from them beyond those: the robot
     model (its frames and joints named after the carts), so check refuses what run, urdf and the
-    node would; a note where a scene's set speed is one its governor cannot hold (the level
-    chooser's prediction, run.fidelity.unheld_speed: a run's report says whether it did)."""
+    node would; a note where a scene's set speed is one its governor cannot hold on the level, or
+    up a plane's fall line whatever the scene's path (the level chooser's bound, run.fidelity.unheld_speed;
+    none on a height grid): a run's report says whether it did."""
     from .config import resolve_config_path
     from .messages.urdf import robot_model
     from .physics.loader import check_files
@@ -38,7 +39,8 @@ def check_main(args: argparse.Namespace) -> int:
     def built(loaded) -> list[str]:
         robot_model(loaded.train if isinstance(loaded, Scene) else loaded)
         unheld = unheld_speed(loaded) if isinstance(loaded, Scene) else ""
-        return [f"speed: {unheld} (a run's report, set speed held, says whether it did)"] if unheld else []
+        return [f"speed: {unheld} (whether it does on the scene's path, a run's report says: set speed held)"] \
+            if unheld else []
 
     return check_files([resolve_config_path(f) for f in args.files], built)
 

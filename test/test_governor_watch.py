@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 
 import pytest
+import yaml
 from test_session import REPO, Run, run  # noqa: F401 (run: the fixture)
 
 from mta_sim_ros import cli
@@ -51,8 +52,51 @@ def test_the_watch_reads_the_power_limit_the_balance_law_predicts(too_fast):
     assert SET - v_star < watch.shortfall < SET - 3.0
     assert 26.0 < watch.total < 30.0 and watch.longest == watch.total == watch.spell  # one spell, to the end
     assert watch.problem().startswith(f"the governor cannot hold the set speed 6 m/s: at its limit min(max_force, "
-                                      f"max_power / |V|) = {RESISTANCE:.4g} N for {watch.total:.1f} s, the speed "
+                                      f"max_power / abs(V)) = {RESISTANCE:.4g} N for {watch.total:.1f} s, the speed "
                                       f"{v_star:.3g} m/s")
+
+
+def run_watch(scene):
+    sim, watch = Simulation(scene), GovernorWatch(scene.train.traction)
+    watch.add(sim.outputs())
+    while sim.t < scene.duration - 1e-9:
+        sim.advance(0.0, scene.speed.value[0])
+        watch.add(sim.outputs())
+    return watch
+
+
+def test_reversing_past_the_power_limit_falls_short_the_same_way(tmp_path):
+    """Backing at a set speed of -6 m/s from -3 (the train kept straight: nothing bends it): the
+    resistances turn with the speed, so the train settles at -V* and falls short by 6 - V*."""
+    (tmp_path / "back.yaml").write_text(SCENE.replace("speed: 3.0}", "speed: -3.0}").replace(f"speed: {SET}",
+                                                                                             f"speed: {-SET}"))
+    watch = run_watch(load_scene(str(tmp_path / "back.yaml")))
+    v_star = MAX_POWER / RESISTANCE
+    assert watch.speed == pytest.approx(-v_star, rel=1e-5) and watch.excess == 0.0
+    assert SET - v_star < watch.shortfall < SET - 3.0 and watch.longest == watch.spell > 26.0
+
+
+def test_downhill_past_the_braking_limit_runs_over_by_the_closed_form(tmp_path):
+    """Down a 25 % grade with the governor's force limited to 5 kN (its power to 1 GW): the grade pulls
+    m g sin(a) - f m g cos(a) - the draft = 22.3 kN, the governor brakes with 5 kN, so on a straight
+    line (the chain's mass is sum m_k) the speed grows at (22.3 - 5) kN / M from the start, and the
+    set speed is overrun by that times the time: the report says 'over', not 'short'."""
+    train = yaml.safe_load((REPO / "config" / "trains" / "default.yaml").read_text())
+    train["forces"]["traction"] = {"law": "governor", "set_speed": 3.0, "max_force": 5000.0, "max_power": 1e9,
+                                   "kp": 34000, "ki": 8500}  # the power limit out of reach
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump(train))
+    scene = (SCENE.replace(str(REPO / "config" / "trains" / "default.yaml"), str(tmp_path / "t.yaml"))
+             .replace(f"speed: {SET}", "speed: 3.0").replace("duration: 30", "duration: 10")
+             + "terrain: {grade_percent: -25, cross_slope_percent: 0}\n")
+    (tmp_path / "down.yaml").write_text(scene)
+    watch = run_watch(load_scene(str(tmp_path / "down.yaml")))
+    sin_a, cos_a = 0.25 / math.sqrt(1.0625), 1.0 / math.sqrt(1.0625)
+    mass = 16000 + 10000 + 8000
+    pull = mass * G * sin_a - (RESISTANCE - 2500 * 12) * cos_a - 2500 * 12
+    assert watch.speed == pytest.approx(3.0 + (pull - 5000.0) / mass * 10.0, rel=1e-9)
+    assert watch.excess == pytest.approx(watch.speed - 3.0, rel=1e-12) and watch.shortfall == 0.0
+    assert watch.longest == watch.spell and watch.total > 9.9
+    assert "the speed up to 5.1 m/s over its set-point" in watch.row()
 
 
 def test_check_notes_it_and_the_report_says_it(too_fast, tmp_path, capsys):
@@ -60,16 +104,19 @@ def test_check_notes_it_and_the_report_says_it(too_fast, tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     limit = MAX_POWER / SET
     assert out[1] == (f"note: {too_fast}: speed: the governor cannot hold 6 m/s: the steady force it needs, "
-                      f"{RESISTANCE:.4g} N, is over its limit min(max_force, max_power / |V|) = {limit:.4g} N (a run's "
-                      "report, set speed held, says whether it did)")
-    for level, said in (("dynamic", "| set speed held | no: the governor at its limit min(max_force, max_power / |V|) "
+                      f"{RESISTANCE:.4g} N, is over its limit min(max_force, max_power / abs(V)) = {limit:.4g} N "
+                      "(whether it does on the scene's path, a run's report says: set speed held)")
+    for level, said in (("dynamic", "| set speed held | no: the governor at its limit min(max_force, max_power / abs(V)) "
                                      "for 2"),
-                        ("kinematic", "| set speed held | not by a governor: the force the kinematic level takes to "
-                                      "prescribe it is over the governor's limit")):
+                        ("kinematic", "| set speed held | no (the kinematic level prescribes it): the force it takes "
+                                      "over the governor's limit min(max_force, max_power / abs(V)) for 30.0 of 30.0 s "
+                                      "(longest 30.0 s) |")):  # 6 m/s takes R = 59.4 kN, the limit there 41.7 kN
         report = tmp_path / f"{level}.md"
         assert cli.main(["run", "--scene", str(too_fast), "--fidelity", level, "--bag", str(tmp_path / f"{level}.mcap"),
                          "--report", str(report), "--quiet"]) == 0
         assert said in report.read_text(), report.read_text()
+        row = next(line for line in report.read_text().splitlines() if line.startswith("| set speed held"))
+        assert row.count("|") == 3  # two cells: no pipe inside the text
 
 
 def test_a_scene_the_governor_holds_says_so(tmp_path, capsys):

@@ -89,6 +89,13 @@ class Terms:
     acceleration: float  # V', m/s^2
     governor_rate: float  # z', N/s
 
+    @property
+    def balance(self) -> float:
+        """N: the traction that holds the speed (V' = 0), sum F_Bk kapB_k + 1/2 M' V + sum F_gk: what
+        a governor's integral starts at (simulation.initial_state) and what a set speed needs
+        (fidelity.unheld_speed)."""
+        return resistance_force(self.resistance, self.chain.kapB) + self.velocity_term + sum(self.grade)
+
 
 class Model:
     """The dynamic level (levels.Level): the equations of one train. Immutable after construction;

@@ -91,14 +91,6 @@ def unfollowed_speed(traction: Traction) -> str:
     return f"traction law {traction.law} holds F_A1 = {traction.force:g} N whatever the speed"
 
 
-def governor_limit(traction: Traction, V: float) -> float:
-    """N: the governor's largest |F_A1| at speed V, min(max_force, max_power / max(|V|, 0.1)) (the
-    kernel's laws.limit_of on its natural branches)."""
-    if math.isinf(traction.max_power):
-        return traction.max_force
-    return min(traction.max_force, traction.max_power / max(abs(V), 0.1))
-
-
 def require_speed_law(train: Train, commander: str) -> None:
     """Refuse (validate.InputError, one line) ``train`` for ``commander`` (a controller that commands
     a speed: "mta reverse", "the implement controller") where its traction law would ignore that speed."""

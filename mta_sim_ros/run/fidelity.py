@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..physics.spec import FIDELITY_LEVELS, Scene, Train, governor_limit
+from ..physics.spec import FIDELITY_LEVELS, Scene, Train
 
 LEVELS = FIDELITY_LEVELS
 #: the outputs a scene's needs name (spec.Needs), each level's prediction per output
@@ -89,8 +89,7 @@ def slip_angles(scene: Scene, dt: float = 0.5) -> tuple[np.ndarray, np.ndarray, 
     def at_heading(y, command, v_set):
         if tr.traction.law == "governor":
             tm = dyn.terms(y, command, v_set)
-            y[L.governor] = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term + \
-                sum(tm.grade)
+            y[L.governor] = tm.balance
         front, rear = no_slip_tyre_forces(model, y, command, v_set)
         return max([abs(front) / model.front_stiffness] + list(np.abs(rear) / model.stiffness))
 
@@ -141,7 +140,7 @@ def steady_state(tr: Train, L, psi: float, v: float):
 
 def unheld_speed(scene: Scene, dt: float = 0.5) -> str:
     """'' where the traction can hold every speed set-point of the scene; else why not, for a governor
-    whose force limit, min(max_force, max_power / |V|), is below the steady force a set-point needs
+    whose force limit, min(max_force, max_power / abs(V)), is below the steady force a set-point needs
     (the resistances, drafts and grade of the quasi-steady state of ``slip_angles``; on a tilted plane
     along its fall line, uphill). There the dynamic and slip levels run slower than the set speed
     and the kinematic level, which prescribes it, is off by what the inputs do not say."""
@@ -164,12 +163,12 @@ def unheld_speed(scene: Scene, dt: float = 0.5) -> str:
             continue
         y[L.heading] += uphill if v > 0.0 else uphill + math.pi
         tm = dyn.terms(y, psi, v)
-        needed = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term + sum(tm.grade)
-        limit = governor_limit(law, v)
+        needed = tm.balance
+        limit = kernel.limit_of(law.max_force, law.max_power, v, kernel.NATURAL, kernel.NATURAL)
         if abs(needed) > limit:
-            where = " uphill along the plane's fall line" if dyn.P[kernel.H.slope] else ""
+            where = " up the plane's fall line" if dyn.P[kernel.H.slope] else ""
             return (f"the governor cannot hold {v:g} m/s{where}: the steady force it needs, {abs(needed):.4g} N, is "
-                    f"over its limit min(max_force, max_power / |V|) = {limit:.4g} N")
+                    f"over its limit min(max_force, max_power / abs(V)) = {limit:.4g} N")
     return ""
 
 

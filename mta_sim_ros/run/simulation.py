@@ -65,8 +65,10 @@ def table_values(table: Table, t):
 def initial_state(scene: Scene, model: Model) -> np.ndarray:
     """The state at t = 0: the scene's pose and speed, the train straight unless hitch angles
     are given, and the governor's integral set so the train starts in equilibrium at its speed
-    (integral = the traction that balances the resistances, the grade's on a slope included; past
-    the governor's limit the force is clipped there and the train slows from the start)."""
+    (integral = the traction that balances the resistances, the grade's on a slope included,
+    Terms.balance; past the governor's limit min(max_force, max_power / V) the force is clipped there
+    from the start and the train leaves its speed, while the anti-windup brings the integral back to
+    the limit within about windup_time)."""
     L = model.layout
     ini = scene.initial
     y = np.zeros(L.size)
@@ -80,8 +82,9 @@ def initial_state(scene: Scene, model: Model) -> np.ndarray:
     if scene.train.traction.law == "governor":
         v_set = speed_setpoint(scene, 0.0)
         tm = model.terms(y, ini.steering, v_set)
-        balance = sum(f * kb for f, kb in zip(tm.resistance, tm.chain.kapB)) + tm.velocity_term + sum(tm.grade)
-        y[L.governor] = balance - scene.train.traction.kp * (v_set - ini.speed)
+        # past the limit the force is clipped from the start; the integral is not: held at the limit
+        # it would put u on the clip's switching surface, where the first step takes the unclipped side
+        y[L.governor] = tm.balance - scene.train.traction.kp * (v_set - ini.speed)
     return y
 
 

@@ -79,6 +79,10 @@ def design(train, speed: float = -1.0, q_offset: float = 1.0, q_hitch: float = 1
     from scipy.linalg import solve_continuous_are
 
     require_speed_law(train, "the reversing controller")
+    if not (math.isfinite(speed) and speed < 0.0):
+        from ...validate import fail, show
+
+        fail("speed", show(speed), "a number < 0 m/s: the reversing controller backs the train up")
 
     model = linearize(train, "straight", speed)
     C, D = last_axle_row(train), heading_row(train)
@@ -155,11 +159,12 @@ def failure(run: ReverseRun) -> str:
     """How a run that envelope.run_holds does not hold ended, in a clause."""
     from .envelope import degrees
 
-    if run.stopped:
-        return f"it stops after {run.distance:.3g} m: {run.stopped.split(';')[0]}"  # the guard's first clause
+    if run.stopped:  # (a train that went forward first has reversed nothing)
+        return f"it stops after {max(run.distance, 0.0):.3g} m: {run.stopped.split(';')[0]}"  # the guard's first clause
     end = run.trace[-1] if len(run.trace) else np.zeros(4)
-    worst = max((abs(phi) for phi in end[3:-1]), default=0.0)
-    return f"it ends {abs(end[2]):.2f} m off the line, a hitch at {degrees(worst)} deg"
+    hitches = end[3:-1]
+    bent = f", a hitch at {degrees(max(abs(phi) for phi in hitches))} deg" if len(hitches) else ""
+    return f"it ends {abs(end[2]):.2f} m off the line{bent}"
 
 
 def holds_on_dynamic(train, gains: Gains) -> bool:

@@ -95,14 +95,15 @@ def unheld_from(train, gains, pattern: tuple, tick: float = TICK, horizon: float
         if not np.all(np.isfinite(x)):
             return f"the chain's geometry breaks after {abs(V) * (i + 1) * tick:.3g} m"
         for k, (phi, limit) in enumerate(zip(x[2:2 + n - 1], limits), start=2):
-            if abs(phi) >= limit:
-                return (f"hitch {k} reaches {degrees(abs(phi))} deg, past its {degrees(limit)} deg limit, after "
+            if abs(phi) >= limit:  # (a chain that folds within one tick: its angle said only as past 180)
+                reached = degrees(abs(phi)) if abs(phi) <= math.pi else "over 180"
+                return (f"hitch {k} reaches {reached} deg, past its {degrees(limit)} deg limit, after "
                         f"{abs(V) * (i + 1) * tick:.3g} m")
     offset = abs(float(C @ x))
     worst = max((abs(p) for p in x[2:2 + n - 1]), default=0.0)
     if offset > SETTLED or worst > START_HITCH:
-        return (f"after {horizon:g} m the last axle is {offset:.2f} m off the line and a hitch at "
-                f"{degrees(worst)} deg: the loop does not settle")
+        bent = f" and a hitch at {degrees(worst)} deg" if n > 1 else ""
+        return f"after {horizon:g} m the last axle is {offset:.2f} m off the line{bent}: the loop does not settle"
     return ""
 
 
