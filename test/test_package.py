@@ -42,6 +42,9 @@ _ROSDEP_KEYS = {
     'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib',
     'numba': 'python3-numba',  # physics/kernel/ (optional at run time; also in requirements.txt)
+    # jit.py's LLVM option: numba's own binding, which numba requires (no rosdistro key of its own:
+    # python3-numba brings it, as pip's numba does; docs/dependencies.md)
+    'llvmlite': 'python3-numba',
     # mta field: the field's geometry and its projection (rosdistro's keys)
     'shapely': 'python3-shapely',
     'pyproj': 'python3-pyproj',
