@@ -18,6 +18,7 @@ import math
 import os
 import re
 import reprlib
+import stat
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -191,6 +192,9 @@ def tick_count(duration: float, rate: float) -> str:
     """'' if a run of ``duration`` s at ``rate`` Hz is within MAX_TICKS ticks, else the rule it
     breaks, with its numbers."""
     ticks = duration * rate
+    if math.floor(ticks + 1e-9) < 1:
+        return (f"at least one tick: {duration:.6g} s x {rate:.6g} Hz = {ticks:.3g} ticks (at least {1.0 / rate:.6g} s "
+                "at this rate)")
     if ticks <= MAX_TICKS:
         return ""
     return (f"at most {MAX_TICKS:.0e} ticks: {duration:.6g} s x {rate:.6g} Hz = {ticks:.3g} ticks "
@@ -228,6 +232,8 @@ def unknown_name_rule(name: object, known: Iterable[str], what: str = "field",
     and the closest of them."""
     known = tuple(known)
     listed = ", ".join(spelled if spelled is not None else known)
+    if not listed:
+        return f"removed: none is taken here (no {what} is known at this place)"
     return f"removed or renamed: unknown {what}; expected one of {listed}{closest(name, known)}"
 
 
@@ -385,10 +391,21 @@ def line_of(mark) -> str:
     return f"line {mark.line + 1}, column {mark.column + 1}"
 
 
+def stream_kind(path: str | os.PathLike) -> str:
+    """'a named pipe' or 'a socket' where ``path`` is one (reading it would wait for a writer), else ''."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return ""  # opening it says why
+    return "a named pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else ""
+
+
 def read_text(path: str | os.PathLike, error: type[InputError] = InputError) -> str:
     """The UTF-8 text of a file of at most MAX_YAML_CHARS characters (never reading more than
     that, whatever the file's size); a fault names the file."""
     source = str(path)
+    if stream_kind(path):
+        fail("file", stream_kind(path), "a YAML file (a pipe's reader waits for a writer)", "document", source, error)
     try:
         with open(path, "rb") as stream:
             data = stream.read(4 * MAX_YAML_CHARS + 1)
@@ -410,6 +427,8 @@ def read_limited(path: str | os.PathLike, limit: int, what: str, error: type[Inp
     """The bytes of a file of at most ``limit`` bytes (never reading more than that, whatever its
     size); a fault names the file and says it is ``what`` that was wanted ("a GeoJSON field file")."""
     source = str(path)
+    if stream_kind(path):
+        fail("file", stream_kind(path), f"{what} (a pipe's reader waits for a writer)", "document", source, error)
     try:
         with open(path, "rb") as stream:
             data = stream.read(limit + 1)

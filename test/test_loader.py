@@ -254,7 +254,7 @@ FAULTS = [
     ("scene", put("integrator.method", "rk5"), "method", "'rk5'", "integrator", "one of euler, heun, ralston, kutta3, rk4, rk38, RK45"),
     ("scene", put("integrator.step", 0.05), "step", "0.05", "integrator", "1/publish_rate] = [2e-06, 0.02] s"),
     ("scene", put("integrator.step", 0), "step", "0", "integrator", "in [1/publish_rate / 10000, 1/publish_rate]"),
-    ("scene", put("integrator.rtol", 0), "rtol", "0", "integrator", "> 0"),
+    ("scene", put("integrator.rtol", 0), "rtol", "0", "integrator", "in [1e-10, 1]"),
     ("scene", put("integrator.atol", -1e-9), "atol", "-1e-09", "integrator", "> 0"),
     ("scene", put("publish_rate", 0), "publish_rate", "0", "top level", "in [1, 1000] Hz"),
     ("scene", put("steering.table.time", [0, 6, 5]), "time", "[0, 6, 5]", "steering.table", "strictly increasing"),

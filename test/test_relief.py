@@ -310,11 +310,16 @@ def test_a_geotiff_is_the_same_grid_as_its_csv(tmp_path):
     ({"transform": (8.0, 0.5, 400000.0, 0.0, -8.0, 5000200.0)}, "{heights: dem.tif}", ["rotated", "north-up"]),
     ({"transform": (8.0, 0.0, 400000.0, 0.0, -10.0, 5000200.0)}, "{heights: dem.tif}", ["8 x 10 m", "square"]),
     ({}, "{heights: dem.tif, spacing: 8}", ["spacing", "GeoTIFF carries its own"]),
+    ({"cell": np.nan}, "{heights: dem.tif}", ["nan at row 2, column 3 of", "finite numbers"]),  # the file's row
+    ({"cell": 1e308}, "{heights: dem.tif}", ["1e+308 at row", "heights within +-100000 m"]),
 ])
 def test_hostile_geotiffs_are_one_line(tmp_path, options, terrain, words):
     from affine import Affine
 
     heights = np.zeros((10, 12))
+    options = dict(options)
+    if "cell" in options:
+        heights[2, 3] = options.pop("cell")
     if "nodata" in options:
         heights[2, 3] = options["nodata"]
     if "transform" in options:

@@ -147,9 +147,12 @@ def flat(rows, cols):
     (flat(4, 4), (0, 0), -1.0, ("spacing: -1",)),
     (flat(4, 4), (0, 0), float("nan"), ("spacing: nan",)),
     (flat(4, 4), (0, 0), True, ("spacing: True",)),
-    (flat(4, 4), (0,), 1.0, ("origin: (0,)", "two finite numbers")),
+    (flat(4, 4), (0,), 1.0, ("origin: (0,)", "two numbers within +-1e+07 m")),
     (flat(4, 4), (0, float("inf")), 1.0, ("origin:",)),
     (flat(4, 4), "00", 1.0, ("origin: '00'",)),
+    (np.full((4, 4), 1e308), (0, 0), 1.0, ("heights: 1e+308 at row 0, column 0", "within +-100000 m")),  # overflowed
+    (flat(4, 4), (1e300, 0), 1.0, ("origin:", "within +-1e+07 m")),
+    (flat(4, 4), (0, 0), 1e300, ("spacing: 1e+300", "<= 100000")),
 ])
 def test_hostile_grids_are_refused_in_one_line(heights, origin, spacing, expected):
     refused(lambda: grid_from(heights, origin, spacing, "terrain", "field.yaml"), *expected, "of field.yaml")

@@ -7,13 +7,13 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from ..validate import output_folder
+from ..validate import distinct_output, output_folder
 from .bagdata import AnalyzeError, load_bag
 from .compare import compare
 from .markdown import markdown
 from .measures import summarize
-from .plots import plot_all
-from .tables import write_csv
+from .plots import figures_of, plot_all
+from .tables import csv_paths, write_csv
 
 
 def default_folder(bags: Sequence[str | os.PathLike]) -> Path:
@@ -41,12 +41,16 @@ def analyze(bags: Sequence[str | os.PathLike], folder: str | os.PathLike | None 
     folder = output_folder(folder if folder is not None else default_folder(bags), "--output")
     labels = _labels(bags)
     datas = [load_bag(b, lab) for b, lab in zip(bags, labels)]
+    csv_folders = [folder / "csv" if len(datas) == 1 else folder / "csv" / d.label for d in datas]
+    for path in [folder / "summary.json", folder / "summary.md"] + [folder / name for name, _ in figures_of(datas)] \
+            + [p for d, f in zip(datas, csv_folders) for p in csv_paths(d, f)]:
+        distinct_output(path, "--output", bags)  # no report file written over a bag it reads
     summaries = [summarize(d) for d in datas]
     differences = {f"{d.label} - {datas[0].label}": compare(datas[0], d) for d in datas[1:]}
     figures = plot_all(datas, folder)
     csv_files = []
-    for d in datas:
-        csv_files += write_csv(d, folder / "csv" if len(datas) == 1 else folder / "csv" / d.label)
+    for d, f in zip(datas, csv_folders):
+        csv_files += write_csv(d, f)
     report = {"bags": [str(b) for b in bags], "labels": labels,
               "summaries": summaries[0] if len(datas) == 1 else dict(zip(labels, summaries)),
               "differences": differences}

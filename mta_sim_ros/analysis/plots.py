@@ -242,11 +242,15 @@ def plot_power_grade(datas, path) -> Path:
     return _save(fig, path)
 
 
+def figures_of(datas: Sequence[BagData]) -> list[tuple[str, object]]:
+    """(file name, plotting function) of every figure of a report on ``datas``: the stance and the
+    power against the grade where a run was on sloped ground."""
+    sloped = any(d.train.terrain is not None or d.train.relief is not None for d in datas)
+    return [("trajectory.png", plot_trajectory), ("speeds.png", plot_speeds), ("power.png", plot_power),
+            ("hitch_angles.png", plot_hitch_angles), ("steering.png", plot_steering)] + (
+        [("stance.png", plot_stance), ("power_grade.png", plot_power_grade)] if sloped else [])
+
+
 def plot_all(datas: Sequence[BagData], folder: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
-    sloped = any(d.train.terrain is not None or d.train.relief is not None for d in datas)
-    return [plot_trajectory(datas, folder / "trajectory.png"), plot_speeds(datas, folder / "speeds.png"),
-            plot_power(datas, folder / "power.png"), plot_hitch_angles(datas, folder / "hitch_angles.png"),
-            plot_steering(datas, folder / "steering.png")] + (
-        [plot_stance(datas, folder / "stance.png"), plot_power_grade(datas, folder / "power_grade.png")] if sloped
-        else [])
+    return [plot(datas, folder / name) for name, plot in figures_of(datas)]

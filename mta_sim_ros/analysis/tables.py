@@ -89,14 +89,18 @@ def csv_name(topic: str) -> str:
     return topic.strip("/").replace("/", "__") + ".csv"
 
 
+def csv_paths(data: BagData, folder: str | os.PathLike) -> list[Path]:
+    """The CSV files ``write_csv`` writes for ``data`` into ``folder``, one a topic, in order."""
+    return [Path(folder) / csv_name(topic) for topic in sorted(data.messages)]
+
+
 def write_csv(data: BagData, folder: str | os.PathLike) -> list[Path]:
     """One CSV per topic of the bag into ``folder``; returns the files written."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     written = []
-    for topic in sorted(data.messages):
+    for topic, path in zip(sorted(data.messages), csv_paths(data, folder)):
         header, rows = csv_rows(data, topic)
-        path = folder / csv_name(topic)
         with open(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(header)

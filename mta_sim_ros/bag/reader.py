@@ -21,6 +21,7 @@ from mcap.records import Channel, Chunk, DataEnd, Header, Message, Metadata, Sch
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap_ros2.decoder import DecoderFactory
 
+from ..validate import one_line, stream_kind
 from .schemas import BagError
 from .writer import DEFAULT_CHUNK_SIZE, BagWriter
 
@@ -31,18 +32,22 @@ PathLike = str | os.PathLike
 def _mcap_reader(path: PathLike, decode: bool = False):
     """Open ``path`` with mcap's seeking reader; errors become BagError naming the file."""
     path = str(path)
+    if stream_kind(path):
+        raise BagError(f"cannot open bag file {path}: {stream_kind(path)}, not an MCAP file")
     try:
         f = open(path, "rb")
     except OSError as exc:
         raise BagError(f"cannot open bag file {path}: {exc.strerror or exc}") from exc
     with f:
-        try:
-            yield make_reader(f, decoder_factories=[DecoderFactory()] if decode else ())
+        try:  # every chunk's CRC checked: a flipped bit is refused, not read as a number
+            yield make_reader(f, validate_crcs=True, decoder_factories=[DecoderFactory()] if decode else ())
         except BagError:
             raise
         except Exception as exc:  # McapError, struct.error, ... on damaged files
-            raise BagError(f"cannot read bag file {path}: {exc!r}; if the writer was killed, "
-                           "rebuild the file with mta_sim_ros.bag.recover()") from exc
+            what = one_line(f"{type(exc).__name__}: {exc}")
+            raise BagError(f"cannot read bag file {path}: {what[:200]}{'...' if len(what) > 200 else ''}; "
+                           f"if it was cut short or damaged, `mta recover {path} -o OUT.mcap` rebuilds what is "
+                           "intact") from exc
 
 
 def read_messages(path: PathLike,

@@ -40,6 +40,11 @@ def read_geotiff(path: str | os.PathLike, where: str = "terrain", source: str = 
         fail("heights", f"a nodata cell at row {row}, column {col} of {show(str(path))}",
              "a grid without nodata (fill it, e.g. gdal_fillnodata)", where, source)
     heights = np.asarray(band.filled(np.nan) if np.ma.isMaskedArray(band) else band, dtype=np.float64)
+    bad = np.argwhere(~np.isfinite(heights))
+    if bad.size:  # named here, in the file's rows (grid_from's rows run along +y)
+        row, col = bad[0]
+        fail("heights", f"{heights[row, col]} at row {row}, column {col} of {show(str(path))}", "finite numbers (m)",
+             where, source)
     a, e = transform.a, transform.e
     if e < 0:  # north-up: row 0 is the north edge; the grid's rows run along +y
         heights = heights[::-1]

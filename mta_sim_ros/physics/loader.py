@@ -381,9 +381,9 @@ def _height_grid(s: Section, recorded: Optional[dict]) -> terrain.HeightGrid:
         if not os.path.isfile(path):
             s.fail("heights", relative, f"a GeoTIFF, relative to the scene's folder (not found: {path})")
         heights, origin, spacing = read_geotiff(path, where, s.source)
-        return terrain.grid_from(heights, list(origin), spacing, where, s.source)
+        return terrain.grid_from(heights, list(origin), spacing, where, s.source, path)
     origin, spacing = _placement(s)
-    return terrain.grid_from(terrain.read_heights(path, where, s.source), origin, spacing, where, s.source)
+    return terrain.grid_from(terrain.read_heights(path, where, s.source), origin, spacing, where, s.source, path)
 
 
 def _placement(s: Section) -> tuple[list, float]:
@@ -424,6 +424,9 @@ def _scene(data: dict, source: str, train: Optional[spec.Train] = None, recorded
     if fidelity == "kinematic" and ignored:  # the kinematic level prescribes the speed (kinematic.py)
         top.fail("fidelity", fidelity, f"another level for train '{train.name}': the kinematic level prescribes "
                  f"the speed, and its {ignored} {followed_by}")
+    if fidelity == "slip" and grid is not None:  # levels.make_level refuses it too, at the run
+        top.fail("fidelity", fidelity, "the kinematic or dynamic level on a height grid: the slip level takes a "
+                 "plane's gravity only (docs/terrain.md)")
     publish_rate = SCENE["publish_rate"].read(top)
     steering, maneuver = _steering(top, train, _speed_at(speed, initial, train.traction))
     integrator = _integrator(top, publish_rate)

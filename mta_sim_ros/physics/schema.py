@@ -59,6 +59,9 @@ POSITION = _magnitude(1e7, "m")
 HEADING = _magnitude(1e3, "rad")
 TIME = _magnitude(validate.MAX_DURATION, "s")
 TOLERANCE = _up_to(1.0, "(relative or absolute)")
+#: an adaptive run's companion takes a thousandth of rtol (run/accuracy.py), and scipy's solvers no rtol
+#: under 100 machine epsilons (2.2e-14): below 1e-10 the companion would not be tighter than the run
+RELATIVE_TOLERANCE = _span(1e-10, 1.0, "(its accuracy companion runs at a thousandth of it)")
 MANEUVER_PARAM = _magnitude(validate.MAX_DURATION, "")  # s, rad, m/s, m: each manoeuvre checks its own
 GRADE = _magnitude(round(100.0 * math.tan(math.radians(terrain.MAX_SLOPE_DEG)), 1), "%")
 HITCH_ANGLE = Rule("in (0, pi]", lambda x: 0 < x <= math.pi)
@@ -329,7 +332,7 @@ INTEGRATOR = Schema("Integrator", "integrator", "How the equations of motion are
     Field("tolerance", NUMBER, "the largest position error the run may have (every A_k, B_k and the last rear "
           "hitch, against the exact solution): a run states its estimate against it (docs/accuracy.md)", "m",
           POSITIVE, _INTEGRATOR.tolerance),
-    Field("rtol", NUMBER, "relative tolerance of the adaptive methods", "", TOLERANCE, _INTEGRATOR.rtol),
+    Field("rtol", NUMBER, "relative tolerance of the adaptive methods", "", RELATIVE_TOLERANCE, _INTEGRATOR.rtol),
     Field("atol", NUMBER, "absolute tolerance of the adaptive methods", "", TOLERANCE, _INTEGRATOR.atol),
     Field("split_kinks", FLAG, "split the steps where the right-hand side has a kink (the steering rate limit "
           "letting go, a force limit engaging), so each method keeps its order there", default=_INTEGRATOR.split_kinks),
@@ -359,7 +362,7 @@ TERRAIN = Schema("Terrain", "terrain", "The ground the train moves on: a plane (
     Field("origin", NUMBERS, "the world (x, y) of the grid's first node (first row, first column)", "m", POSITION,
           (0.0, 0.0), also="two numbers"),
     Field("spacing", NUMBER, "the distance between neighbouring nodes of the grid, along x and y", "m",
-          _span(0.01, 1e5, "m"), None, default_text="required with heights"),
+          _span(0.01, terrain.MAX_SPACING, "m"), None, default_text="required with heights"),
 ), notes=(f"the slope at most {terrain.MAX_SLOPE_DEG:g} deg (a grid's between any two neighbouring nodes)",
           "heights with origin and spacing, or grade_percent and cross_slope_percent: not both",
           "on a height grid the train stays on the grid (a run stops where a cart's centre of mass leaves it)"))

@@ -266,3 +266,10 @@ class Scene:
     needs: Optional[Needs] = None  # None: not stated (auto then keeps the article's dynamic model)
     source: str = ""  # the file it came from
     raw: dict = field(default_factory=dict, compare=False, hash=False)  # the YAML as read
+
+    def input_files(self) -> tuple[str, ...]:
+        """The files a run of this scene reads: the scene's, its train's and a height grid's (what no
+        output of the run may overwrite)."""
+        relief = self.train.relief
+        files = (self.source, self.train.source, relief.file if relief is not None else "")
+        return tuple(f for f in files if f)

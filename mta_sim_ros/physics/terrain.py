@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,6 +66,10 @@ MIN_NODES = 4
 #: the most nodes of a grid (16 M: 128 MB of float64), and the largest grid file read, bytes
 MAX_NODES = 4096 * 4096
 MAX_FILE_BYTES = 256 * 2**20
+#: m: a height's, a grid origin's coordinates' and a node spacing's largest magnitude (Earth's relief spans
+#: some 20 km, a projected coordinate some 1e7 m; a scene's positions take the same): beyond them the
+#: spline's arithmetic overflows. A scene's origin and spacing are read by these rules (schema.py) too.
+MAX_HEIGHT, MAX_COORDINATE, MAX_SPACING = 1e5, 1e7, 1e5
 
 
 class OffTerrain(ValueError):
@@ -247,11 +252,13 @@ class HeightGrid:
     node (scipy's RectBivariateSpline, s = 0, fits it; kernel/relief.py evaluates it, in the
     equations and here alike). Built from checked arrays only: :func:`grid_from` checks them."""
 
-    def __init__(self, heights: np.ndarray, origin: tuple[float, float], spacing: float, source: str = ""):
+    def __init__(self, heights: np.ndarray, origin: tuple[float, float], spacing: float, source: str = "",
+                 file: str = ""):
         from scipy.interpolate import RectBivariateSpline
 
         self.heights = heights
-        self.origin, self.spacing, self.source = origin, spacing, source
+        #: source: the scene that names the grid; file: the heights' own file ('' when a run recorded them)
+        self.origin, self.spacing, self.source, self.file = origin, spacing, source, file
         ny, nx = heights.shape
         self.xs = origin[0] + spacing * np.arange(nx)
         self.ys = origin[1] + spacing * np.arange(ny)
@@ -322,16 +329,18 @@ def plane_from(grade_percent: float, cross_slope_percent: float, where: str = "t
     return plane
 
 
-def grid_from(heights: object, origin: object, spacing: object, where: str = "terrain", source: str = "") -> HeightGrid:
+def grid_from(heights: object, origin: object, spacing: object, where: str = "terrain", source: str = "",
+              file: str = "") -> HeightGrid:
     """A HeightGrid from a 2-D array of heights (m), the (x, y) of its first node and the node
     spacing (m), checked: finite numbers, at least MIN_NODES nodes along each axis, at most
     MAX_NODES in all, no slope between neighbouring nodes over MAX_SLOPE_DEG."""
-    if not (isinstance(spacing, (int, float)) and not isinstance(spacing, bool) and math.isfinite(spacing)
-            and spacing > 0):
-        fail("spacing", show(spacing), "a finite number > 0 (m between nodes)", where, source)
+    if not (isinstance(spacing, (int, float)) and not isinstance(spacing, bool) and 0 < spacing <= MAX_SPACING):
+        fail("spacing", show(spacing), f"a number > 0 and <= {MAX_SPACING:g} (m between nodes)", where, source)
     if not (isinstance(origin, (list, tuple)) and len(origin) == 2
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in origin)):
-        fail("origin", show(origin), "[x, y] of the first node, two finite numbers (m)", where, source)
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= MAX_COORDINATE
+                    for v in origin)):
+        fail("origin", show(origin), f"[x, y] of the first node, two numbers within +-{MAX_COORDINATE:g} m", where,
+             source)
     h = np.asarray(heights)
     if h.ndim != 2 or h.dtype.kind not in "iuf":
         fail("heights", f"an array of shape {h.shape} ({h.dtype})", "a 2-D array of numbers (rows along y)", where,
@@ -346,11 +355,16 @@ def grid_from(heights: object, origin: object, spacing: object, where: str = "te
     if bad.size:
         row, col = bad[0]
         fail("heights", f"{h[row, col]} at row {row}, column {col}", "finite numbers (m)", where, source)
+    highest = float(np.max(np.abs(h)))
+    if highest > MAX_HEIGHT:
+        row, col = np.unravel_index(int(np.argmax(np.abs(h))), h.shape)
+        fail("heights", f"{h[row, col]:g} at row {row}, column {col}", f"heights within +-{MAX_HEIGHT:g} m", where,
+             source)
     steepest = max(float(np.max(np.abs(np.diff(h, axis=a)), initial=0.0)) for a in (0, 1)) / float(spacing)
     if math.degrees(math.atan(steepest)) > MAX_SLOPE_DEG:
         fail("heights", f"a rise of {steepest * spacing:g} m over {spacing:g} m between neighbouring nodes",
              f"a slope of at most {MAX_SLOPE_DEG:g} deg", where, source)
-    return HeightGrid(h, (float(origin[0]), float(origin[1])), float(spacing), source)
+    return HeightGrid(h, (float(origin[0]), float(origin[1])), float(spacing), source, file)
 
 
 def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = "") -> np.ndarray:
@@ -370,7 +384,9 @@ def read_heights(path: str | os.PathLike, where: str = "terrain", source: str = 
         if suffix == ".npy":
             return np.load(p, allow_pickle=False)
         if suffix == ".csv":
-            return np.loadtxt(p, delimiter=",", ndmin=2, encoding="utf-8-sig")  # a spreadsheet's BOM
+            with warnings.catch_warnings():  # an empty file: grid_from says so, in its one line
+                warnings.simplefilter("ignore", UserWarning)
+                return np.loadtxt(p, delimiter=",", ndmin=2, encoding="utf-8-sig")  # a spreadsheet's BOM
     except (ValueError, OSError, EOFError) as err:
         fail("file", show(str(path)), f"a grid of numbers ({str(err).splitlines()[0] if str(err) else err!r})",
              where, source)

@@ -36,9 +36,11 @@ from ..run.simulation import run_scene
 from ..run.summary import RunSummary
 from ..validate import (
     EXIT_INPUT,
+    FRAME_ID,
     MAX_STEPS_PER_TICK,
     POSITIVE,
     PUBLISH_RATE,
+    distinct_output,
     fail,
     number_arg,
     output_file,
@@ -111,15 +113,17 @@ def run_metadata(scene, options: dict) -> dict[str, str]:
 
 def output_paths(args: argparse.Namespace, scene) -> tuple[Path, Path]:
     """The bag and report paths, checked before any work: writable files (validate.output_file),
-    not the same file, and neither the scene nor its train file."""
+    not the same file, and none of the files the run reads (Scene.input_files: the scene, its train,
+    a height grid)."""
     bag = output_file(args.bag or f"bags/{scene.name}.mcap", "--bag")
     report = output_file(args.report, "--report") if args.report else bag.with_suffix(".md")
     if report.resolve() == bag.resolve():
+        if not args.report:  # the report's default name is the bag's with .md
+            fail("--bag", show(str(bag)), "a file not ending in .md: the report is written beside it as <bag>.md "
+                 "unless --report names it")
         fail("--report", show(str(report)), "another file than the bag")
     for field, path in (("--bag", bag), ("--report", report)):
-        for source in (scene.source, scene.train.source):
-            if path.resolve() == Path(source).resolve():
-                fail(field, show(str(path)), f"another file than the input {source}")
+        distinct_output(path, field, scene.input_files())
     return bag, report
 
 
@@ -168,6 +172,8 @@ def main(args: argparse.Namespace) -> int:
         choice = choose(scene, forced=getattr(args, "fidelity", None))
         options = run_options(args, scene, choice)
         robot = robot_model(scene.train)  # the root namespace's frames: no prefix
+        if not FRAME_ID.test(args.frame_id):  # the node's frame_id parameter's rule
+            fail("--frame-id", show(args.frame_id), FRAME_ID.text)
         if robot.frame_id_rule(args.frame_id):
             fail("--frame-id", show(args.frame_id), robot.frame_id_rule(args.frame_id))
         bag_path, report_path = output_paths(args, scene)

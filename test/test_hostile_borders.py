@@ -1,0 +1,157 @@
+"""Borders a hostile tester broke (stop 42), each held here: no output is written over a file the
+command reads (a run's height grid, a bag `mta analyze` reads); a bag whose chunk fails its CRC is
+refused, not read as numbers; what `mta run` refuses, `mta check` refuses (the slip level on a
+height grid); every number has a range (heights, rtol, a run of less than one tick); a named pipe
+is refused, not waited on; `--frame-id` takes the node's rule. Each refusal is one line, exit 2
+(1 for a bag that cannot be read, as documented)."""
+from __future__ import annotations
+
+import hashlib
+import os
+
+import numpy as np
+import pytest
+from hostile import CONFIG, assert_refused, mta, short_scene
+from mcap.reader import make_reader
+
+from mta_sim_ros import cli
+from mta_sim_ros.bag import BagWriter
+
+TRAIN = CONFIG / "trains" / "default.yaml"
+
+
+def grid_scene(folder, heights_file="h.csv", extra="") -> str:
+    """A 2 s straight run on a flat 20 x 20 grid (8 m spacing) from the file ``heights_file``."""
+    path = folder / "grid.yaml"
+    path.write_text(f"train: {TRAIN}\nduration: 2\ninitial: {{speed: 3.0}}\nsteering: {{maneuver: straight}}\n"
+                    f"speed: 3.0\nterrain: {{heights: {heights_file}, origin: [-50, -80], spacing: 8}}\n{extra}")
+    return str(path)
+
+
+def digest(path) -> str:
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def one_line(capsys, *expected) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    for text in expected:
+        assert text in err, (text, err)
+    return err
+
+
+@pytest.mark.parametrize("flag", ["--bag", "--report"])
+def test_a_run_never_writes_over_its_height_grid(tmp_path, flag, capsys):
+    np.savetxt(tmp_path / "h.csv", np.zeros((20, 20)), delimiter=",")
+    before = digest(tmp_path / "h.csv")
+    target = {"--bag": ["--bag", str(tmp_path / "h.csv")],
+              "--report": ["--bag", str(tmp_path / "r.mcap"), "--report", str(tmp_path / "h.csv")]}[flag]
+    assert cli.main(["run", "--scene", grid_scene(tmp_path), *target, "--quiet"]) == 2
+    one_line(capsys, f"{flag}: ", "must be another file than the input", "h.csv")
+    assert digest(tmp_path / "h.csv") == before
+    assert cli.main(["run", "--scene", grid_scene(tmp_path), "--bag", str(tmp_path / "r.mcap"), "--quiet"]) == 0
+    assert digest(tmp_path / "h.csv") == before
+
+
+def test_a_bag_named_like_the_report_is_not_taken_for_it(tmp_path, capsys):
+    assert cli.main(["run", "--scene", str(short_scene(tmp_path)), "--bag", str(tmp_path / "x.md"), "--quiet"]) == 2
+    one_line(capsys, "--bag: ", "x.md", "not ending in .md")
+    assert not (tmp_path / "x.md").exists()
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("bag")
+    path = folder / "run.mcap"
+    assert cli.main(["run", "--scene", str(short_scene(folder)), "--bag", str(path), "--quiet"]) == 0
+    return path
+
+
+@pytest.mark.parametrize("name", ["summary.json", "summary.md", "trajectory.png", "csv/odom.csv"])
+def test_analyze_never_writes_over_a_bag_it_reads(bag, tmp_path, name, capsys):
+    """A bag sitting where the report would write one of its files: refused before any is written."""
+    target = tmp_path / "out" / name
+    target.parent.mkdir(parents=True)
+    target.write_bytes(bag.read_bytes())
+    assert cli.main(["analyze", str(target), "-o", str(tmp_path / "out")]) == 2
+    one_line(capsys, "--output: ", "must be another file than the input")
+    assert target.read_bytes() == bag.read_bytes()
+    assert sorted(p.name for p in (tmp_path / "out").rglob("*") if p.is_file()) == [target.name]
+
+
+def uncompressed_copy(source, out):
+    """``source`` rewritten with its chunks uncompressed (the same records), so a byte of a message
+    can be found in the file and flipped."""
+    with open(source, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        with BagWriter(str(out), metadata=meta, compression="none") as copy:
+            for c in summary.channels.values():
+                schema = summary.schemas[c.schema_id]
+                copy.add_channel(c.topic, schema.name, schema.data, c.metadata)
+            for _, channel, message in reader.iter_messages(log_time_order=False):
+                copy.write_raw(channel.topic, message.data, message.log_time)
+    return out
+
+
+def test_a_bag_whose_chunk_fails_its_crc_is_refused_not_read(bag, tmp_path, capsys):
+    """One bit of a pose flipped inside a chunk: the chunk's CRC no longer holds. Without the check
+    the analysis read the changed number as the run's; now it is one line, exit 1, naming the tool
+    that rebuilds what is intact. The intact copy is analysed (the check refuses only the damage)."""
+    intact = uncompressed_copy(bag, tmp_path / "intact.mcap")
+    assert cli.main(["analyze", str(intact), "-o", str(tmp_path / "a")]) == 0
+    capsys.readouterr()
+    with open(intact, "rb") as f:
+        pose = next(m.data for _, c, m in make_reader(f).iter_messages(topics=["/odom"]))
+    data = bytearray(intact.read_bytes())
+    at = data.find(pose)
+    assert at > 0 and data.find(pose, at + 1) < 0
+    data[at + len(pose) - 9] ^= 0x01  # a low bit of a covariance or twist value near the end of one /odom
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    assert cli.main(["analyze", str(damaged), "-o", str(tmp_path / "b")]) == 1
+    one_line(capsys, "cannot read bag file", "CRC", f"mta recover {damaged} -o OUT.mcap")
+    assert cli.main(["recover", str(damaged), "-o", str(tmp_path / "rebuilt.mcap")]) == 0
+
+
+SCENE_FAULTS = [
+    ("slip-on-a-grid", "fidelity: slip\n", "h.csv", ["fidelity: 'slip'", "kinematic or dynamic level on a height grid"]),
+    ("heights-past-range", "", "big.npy", ["heights: 1e+308 at row 0, column 0", "within +-100000 m"]),
+    ("under-one-tick", "", "h.csv", ["duration: 1e-300", "at least one tick"]),
+    ("rtol-below-floor", "integrator: {method: RK45, rtol: 1.0e-300}\n", "h.csv", ["rtol: 1e-300", "in [1e-10, 1]"]),
+    ("params-on-straight", "", "h.csv", ["a: 1 in steering.params", "must be removed: none is taken here"]),
+]
+
+
+@pytest.mark.parametrize("case,extra,heights,expected", SCENE_FAULTS, ids=[c[0] for c in SCENE_FAULTS])
+def test_check_refuses_what_a_run_cannot_take(tmp_path, case, extra, heights, expected, capsys):
+    np.savetxt(tmp_path / "h.csv", np.zeros((20, 20)), delimiter=",")
+    np.save(tmp_path / "big.npy", np.full((20, 20), 1e308))
+    path = grid_scene(tmp_path, heights, extra)
+    text = open(path).read()
+    if case == "under-one-tick":
+        text = text.replace("duration: 2", "duration: 1e-300")
+    if case == "params-on-straight":
+        text = text.replace("{maneuver: straight}", "{maneuver: straight, params: {a: 1}}")
+    open(path, "w").write(text)
+    assert cli.main(["check", path]) == 2
+    one_line(capsys, *expected)
+    assert cli.main(["run", "--scene", path, "--bag", str(tmp_path / "r.mcap"), "--quiet"]) == 2
+    one_line(capsys, *expected)
+
+
+@pytest.mark.parametrize("command", ["check", "analyze"])
+def test_a_named_pipe_is_refused_not_waited_on(tmp_path, command):
+    fifo = tmp_path / ("pipe.yaml" if command == "check" else "pipe.mcap")
+    os.mkfifo(fifo)
+    done = mta(command, fifo, timeout=60)  # before: blocked until something wrote to the pipe
+    assert_refused(done, "named pipe", code=2 if command == "check" else 1)
+
+
+@pytest.mark.parametrize("frame", ["", "a b", "/map"])
+def test_a_run_takes_the_nodes_rule_for_its_frame(tmp_path, frame, capsys):
+    assert cli.main(["run", "--scene", str(short_scene(tmp_path)), "--bag", str(tmp_path / "r.mcap"),
+                     "--frame-id", frame, "--quiet"]) == 2
+    one_line(capsys, "--frame-id: ", "a frame name: 1 to 256 printable characters")
+    assert not (tmp_path / "r.mcap").exists()
