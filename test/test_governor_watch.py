@@ -6,6 +6,7 @@ the governor pulls max_power / V, so the train settles where that equals the res
 V* = max_power / R."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -156,3 +157,28 @@ def test_a_governor_within_its_limit_says_nothing(run):
     run.ticks(int(1.5 * HOLD * 50))
     d = run.s.diagnostics()
     assert d.level == OK and d.values["governor_at_limit_s"] == 0.0 and not math.isnan(d.values["governor_at_limit_s"])
+
+
+def test_a_run_that_ends_at_the_limit_is_not_held_however_short(too_fast):
+    """3 s at 6 m/s (shorter than HOLD): the governor reaches its limit and the run ends there: "no",
+    not "short spells" (a spell counts as short only where the speed came back)."""
+    scene = load_scene(str(too_fast))
+    scene = dataclasses.replace(scene, duration=3.0)
+    watch = run_watch(scene)
+    assert 0.0 < watch.longest == watch.spell < HOLD
+    assert watch.row().startswith("no: the governor at its limit"), watch.row()
+
+
+def test_a_start_off_the_set_speed_still_closing_in_is_said(too_fast):
+    """From 1 m/s to a set speed of 3 m/s, within the governor's limits: its integral starts at the
+    balance (no kick), so V - V0 = e obeys M e'' + kp e' + ki e = ki (v_set - V0), critically damped
+    (kp^2 = 4 M ki, w = kp / 2M = 0.5 1/s): e(t) = 2 (1 - (1 + w t) e^(-w t)), 1.425 m/s after 5 s, the
+    speed 0.575 m/s short: "not by the end", and the clause says how far."""
+    too_fast.write_text(SCENE.replace(f"speed: {SET}", "speed: 3.0").replace("initial: {speed: 3.0}", "initial: {speed: 1.0}")
+                        .replace("duration: 30", "duration: 5"))
+    watch = run_watch(load_scene(str(too_fast)))
+    w = 34000 / (2 * (16000 + 10000 + 8000))
+    v_end = 1.0 + 2.0 * (1.0 - (1.0 + w * 5.0) * math.exp(-w * 5.0))
+    assert watch.total == 0.0 and watch.speed == pytest.approx(v_end, rel=1e-6)
+    assert watch.row() == ("not by the end: the governor within its limit throughout; the speed ends "
+                           f"{3.0 - v_end:.3g} m/s short of its set-point, the governor still closing in")

@@ -29,6 +29,8 @@ HOLD = 5.0
 AT_LIMIT = 1e-9
 #: m/s: a speed this close to its set-point is held, whatever the force
 HELD = 1e-3
+#: a run's last speed this close to its set-point (relative, at least CLOSE_FLOOR m/s) has reached it
+CLOSE, CLOSE_FLOOR = 0.01, 0.01
 
 
 class GovernorWatch:
@@ -94,12 +96,19 @@ class GovernorWatch:
                 f"max_power / abs(V)) = {self.limit:.4g} N for {self.spell:.1f} s, the speed {self.speed:.3g} m/s")
 
     def row(self) -> str:
-        """The run report's cell: '' when there is no governor."""
+        """The run report's cell: '' when there is no governor. "yes" where the governor never was at
+        its limit and the run ends at its set-point; "yes, but for short spells" where each spell at
+        the limit was shorter than HOLD and the speed came back; "no" where one lasted HOLD or the run
+        ended in one; "not by the end" where the run ends off its set-point (CLOSE) with the governor
+        within its limit, still closing in (a start off the set speed, the gains kp, ki set how fast)."""
         if not self.active:
             return ""
+        end = "" if self.prescribed else self.end_gap()
         if self.total == 0.0:
-            return "yes: the governor within its limit throughout"
-        verdict = "no" if self.longest >= HOLD else "yes, but for short spells"
+            return f"not by the end: the governor within its limit throughout{end}" if end else \
+                "yes: the governor within its limit throughout"
+        verdict = "no" if self.longest >= HOLD or self.spell > 0.0 else \
+            "not by the end" if end else "yes, but for short spells"
         spells = f"{seconds(self.total)} of {seconds(self.duration)} s (longest {seconds(self.longest)} s)"
         if self.prescribed:
             return (f"{verdict} (the kinematic level prescribes it): the force it takes over the governor's limit "
@@ -107,7 +116,16 @@ class GovernorWatch:
         off = [f"{v:.3g} m/s {word} its set-point" for v, word in ((self.shortfall, "short of"), (self.excess, "over"))
                if v > 0.0]
         return (f"{verdict}: the governor at its limit min(max_force, max_power / abs(V)) for {spells}, the speed up "
-                f"to {' and up to '.join(off)}")
+                f"to {' and up to '.join(off)}" + ("" if self.spell > 0.0 else end))
+
+    def end_gap(self) -> str:
+        """'' where the latest speed is within CLOSE of its set-point, else the clause saying how far
+        off it is (the way it points: short of it, or over it)."""
+        error = self.setpoint - self.speed
+        if not abs(error) > max(CLOSE * abs(self.setpoint), CLOSE_FLOOR):
+            return ""
+        word = "short of" if error * self.setpoint > 0.0 else "over"
+        return f"; the speed ends {abs(error):.3g} m/s {word} its set-point, the governor still closing in"
 
 
 def seconds(t: float) -> str:
