@@ -153,12 +153,13 @@ def merged(pts: np.ndarray, turns: np.ndarray, curves: Curves, concave: float):
         if over[i] <= 1e-9:
             break
         j = (i + 1) % k
-        if turns[i] * turns[j] > 0.0 and abs(turns[i] + turns[j]) < math.pi - 1e-6:
-            a, b = pts[i - 1], pts[i]
-            c, d = pts[j], pts[(j + 1) % k]
-            u, v = b - a, d - c
-            t = ((c - a)[0] * v[1] - (c - a)[1] * v[0]) / (u[0] * v[1] - u[1] * v[0])
-            pts[i], turns[i] = a + t * u, turns[i] + turns[j]
+        crossing = _crossing(pts[i - 1], pts[i], pts[j], pts[(j + 1) % k]) \
+            if turns[i] * turns[j] > 0.0 and abs(turns[i] + turns[j]) < math.pi - 1e-6 else None
+        # two corners of one sense merge where their edges cross within their fillets' reach: nearly
+        # antiparallel edges (a U of two right angles, off by round-off) cross kilometres away
+        reach = tan[i] + tan[j]
+        if crossing is not None and max(np.hypot(*(crossing - pts[i])), np.hypot(*(crossing - pts[j]))) <= reach:
+            pts[i], turns[i] = crossing, turns[i] + turns[j]
             del pts[j], turns[j]
         else:
             drop = i if abs(turns[i]) < abs(turns[j]) else j
@@ -166,6 +167,13 @@ def merged(pts: np.ndarray, turns: np.ndarray, curves: Curves, concave: float):
             pts_arr, turns_arr = corner_table(np.array(pts + [pts[0]]))
             pts, turns = list(pts_arr), list(turns_arr)
     return np.array(pts), np.array(turns)
+
+
+def _crossing(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Where the line through a, b crosses the line through c, d (not parallel)."""
+    u, v = b - a, d - c
+    t = ((c - a)[0] * v[1] - (c - a)[1] * v[0]) / (u[0] * v[1] - u[1] * v[0])
+    return a + t * u
 
 
 def cc_loop(loop: sg.LineString, curves: Curves, concave, spacing: float) -> sg.LineString:

@@ -20,6 +20,8 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 
+import numpy as np
+import shapely
 from shapely import geometry as sg
 
 from ..validate import fail, is_finite, show
@@ -249,11 +251,29 @@ def plan_field(field: Field, train, options: PlanOptions) -> Plan:
         rings = needed
     notes = plan_notes(field, options, turn, measured, layout, run, asked)
     route, segments = assemble(run.stretches, SPACING)
+    check_route(field, route, run.reach + 2.0 * turn.radius + options.width)
     band = layout.headlands
     target = field.polygon if options.work_headlands else band.inner
     return Plan(field=field, options=options, angle=layout.swaths.angle, headland_rings=band.rings,
                 inner=band.inner, target=target, swaths=tuple(run.swaths), segments=segments, route=route,
                 turn_radius=turn.radius, headland_width=band.width, notes=tuple(notes))
+
+
+def check_route(field: Field, route, stray: float) -> None:
+    """The planner's own failure (round-off its geometry did not survive) refused in one line, never
+    written as a plan: a route past MAX_ROUTE_VERTICES, or one that leaves the field by more than
+    ``stray`` m (what its turns may reach past a too narrow headland, with a turn's diameter and a width)."""
+    xy = route.xy
+    if len(xy) > MAX_ROUTE_VERTICES:
+        fail("boundary", f"a route of {len(xy)} vertices", f"a field the planner fits in at most {MAX_ROUTE_VERTICES} "
+             "vertices (its geometry failed on this one: simplify or round the boundary's coordinates)", "field",
+             field.source, FieldError)
+    outside = ~shapely.contains_xy(field.polygon.buffer(stray), xy[:, 0], xy[:, 1])
+    if outside.any():
+        x, y = xy[int(np.argmax(outside))]
+        fail("boundary", f"a route that leaves the field at ({x:.1f}, {y:.1f}) m",
+             f"a field the planner keeps its route in, to {stray:.1f} m (its geometry failed on this one: simplify or "
+             "round the boundary's coordinates)", "field", field.source, FieldError)
 
 
 def plan_notes(field, options, turn: Turning, measured: Reach, layout: Layout, run: Drive, asked: int) -> list:
