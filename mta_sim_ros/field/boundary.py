@@ -236,8 +236,10 @@ def _point(value, field: str, source: str, limit: float, unit: str, geographic: 
 
 def _name(data: dict, source: str, default: Optional[str] = None) -> str:
     name = data.get("name", default if default is not None else Path(source).stem)
-    if not isinstance(name, str) or not 0 < len(name) <= 100 or not name.isprintable():
-        _fail("name", validate.show(name), "1 to 100 printable characters", "top level", source)
+    if not isinstance(name, str) or not 0 < len(name) <= 100 or not name.isprintable() \
+            or any(c in name for c in "/\\") or name in (".", ".."):  # it names the plan's and the run's folder
+        _fail("name", validate.show(name), "1 to 100 printable characters without / or \\, not . or ..", "top level",
+              source)
     return name
 
 

@@ -39,6 +39,7 @@ PLAN_TYPE = "nav_msgs/msg/Path"
 PLAN_METADATA = "mta_sim_ros_plan"
 FRAME_ID = "map"
 SPACING_LINE = "# spacing_m: "  # the comment line giving the route's vertex spacing
+PLAN_LINE = "# mta_sim_ros coverage plan of field "  # the first line of a plan's CSV, the field's name after it
 CSV_COLUMNS = ("x", "y", "s", "heading", "curvature", "working", "reverse", "segment", "kind", "index")
 
 
@@ -50,7 +51,7 @@ def route_csv(plan: Plan) -> str:
     """The route as CSV text (module docstring)."""
     route, field = plan.route, plan.field
     out = io.StringIO()
-    out.write(f"# mta_sim_ros coverage plan of field {field.name} ({field.source}); frame: "
+    out.write(f"{PLAN_LINE}{field.name} ({field.source}); frame: "
               + ("local metric (x east, y north, m)" if field.crs == LOCAL else
                  f"{field.crs} shifted by origin {field.origin[0]!r}, {field.origin[1]!r} (m)") + "\n")
     out.write("# the implement's working point; heading rad (direction of motion), curvature 1/m\n")

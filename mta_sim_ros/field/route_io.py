@@ -31,7 +31,7 @@ from .. import validate
 from ..validate import fail, show
 from .boundary import LOCAL, MAX_EXTENT, MAX_LOCAL, FieldError
 from .plan import MAX_ROUTE_VERTICES
-from .plan_io import CSV_COLUMNS, PLAN_METADATA, PLAN_TOPIC, PLAN_TYPE, SPACING_LINE
+from .plan_io import CSV_COLUMNS, PLAN_LINE, PLAN_METADATA, PLAN_TOPIC, PLAN_TYPE, SPACING_LINE
 from .route import Stretch, assemble, polyline_arrays, wrap
 from .types import SEGMENT_KINDS, Route, Segment
 
@@ -89,13 +89,16 @@ def _number(text: str, what: str, line: int, source: str) -> float:
     return value
 
 
-def _rows(text: str, source: str) -> tuple[list, list, str]:
-    """(header or [], [(line number, cells)], the spacing comment's value or '')."""
-    rows, spacing = [], ""
+def _rows(text: str, source: str) -> tuple[list, list, str, str]:
+    """(header or [], [(line number, cells)], the spacing comment's value or '', the name of the
+    field a plan's own CSV says it is of, or '')."""
+    rows, spacing, of = [], "", ""
     for number, raw in enumerate(text.splitlines(), 1):
         line = raw.strip()
         if line.startswith(SPACING_LINE.strip()):
             spacing = line[len(SPACING_LINE.strip()):].strip()
+        if line.startswith(PLAN_LINE) and not of:  # "... of field NAME (FILE); frame: ..."
+            of = line[len(PLAN_LINE):].rsplit("; frame:", 1)[0].rsplit(" (", 1)[0]
         if not line or line.startswith("#"):
             continue
         rows.append((number, [c.strip() for c in next(csv.reader(io.StringIO(line)))]))
@@ -106,17 +109,21 @@ def _rows(text: str, source: str) -> tuple[list, list, str]:
     first = rows[0][1]
     try:
         [float(c) for c in first[:2]]
-        return [], rows, spacing
+        return [], rows, spacing, of
     except ValueError:
-        return [c.lower() for c in first], rows[1:], spacing
+        return [c.lower() for c in first], rows[1:], spacing, of
 
 
 def csv_route(text: str, source: str, field=None) -> ReadRoute:
-    """A route from CSV text: a plan's own (every column of plan_io.CSV_COLUMNS) or x, y."""
-    header, rows, spacing = _rows(text, source)
+    """A route from CSV text: a plan's own (every column of plan_io.CSV_COLUMNS) or x, y. A plan's own
+    made for another field than ``field`` is refused (its swaths and turns are that field's)."""
+    header, rows, spacing, of = _rows(text, source)
     if header and not {"x", "y"} <= set(header):
         _fail("header", show(",".join(header)), "columns x and y (or no header: x, y first)", source)
     if header and set(CSV_COLUMNS) <= set(header):
+        if field is not None and of and of != field.name:
+            _fail("field", show(of), f"the field it is run on, {field.name}: a plan is made for one field (mta field "
+                  "plan)", source, "plan")
         return _own_route(header, rows, spacing, source, field)
     ix, iy = (header.index("x"), header.index("y")) if header else (0, 1)
     xy = np.empty((len(rows), 2))

@@ -109,8 +109,8 @@ def field_scene_from_data(data: dict, source: str) -> FieldScene:
     try:
         top = Section(data, "", source, FIELD_SCENE.keys)
         name = FIELD_SCENE["name"].read(top, default=os.path.splitext(os.path.basename(source))[0])
-        if len(name) > 100 or not name.isprintable() or any(c in name for c in "/\\"):
-            top.fail("name", name, "a name of at most 100 printable characters without / or \\")
+        if len(name) > 100 or not name.isprintable() or any(c in name for c in "/\\") or name in (".", ".."):
+            top.fail("name", name, "a name of at most 100 printable characters without / or \\, not . or ..")
         relative = FIELD_SCENE["field"].read(top)
         plan = _read(top, "plan", PLAN)
         drive = _read(top, "drive", DRIVE)

@@ -20,10 +20,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from .. import validate
 from ..validate import EXIT_INPUT, InputError, fail, output_folder, show
 
 INPUTS = ("trace.npz", "coverage.json", "metrics.json")
@@ -62,13 +64,17 @@ def read_run(folder: Path) -> dict:
         if not (folder / name).is_file():
             fail("run", show(str(folder)), f"a folder of mta field run (it has no {name})")
     try:
-        with np.load(folder / "trace.npz") as npz:
+        with np.load(folder / "trace.npz", allow_pickle=False) as npz:
             trace = {k: npz[k] for k in npz.files}
         doc = json.loads((folder / "coverage.json").read_text())
         shapes = {k: shapely.from_wkt(v) for k, v in doc["wkt"].items()}
         metrics = json.loads((folder / "metrics.json").read_text())
-    except (OSError, ValueError, KeyError, shapely.errors.ShapelyError) as err:
-        fail("run", show(str(folder)), f"a readable field run ({type(err).__name__}: {err})")
+        problem = _run_problem(trace, shapes, metrics)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, EOFError, zipfile.BadZipFile,
+            shapely.errors.ShapelyError) as err:
+        problem = f"{type(err).__name__}: {err}"
+    if problem:
+        fail("run", show(str(folder)), f"a readable field run ({validate.one_line(problem)[:300]})")
     return {"trace": trace, "shapes": shapes, "metrics": metrics, "markdown": (folder / "metrics.md").read_text()
             if (folder / "metrics.md").is_file() else ""}
 
@@ -101,6 +107,38 @@ def _lines(ax, geometry, **style) -> None:
         xy = np.asarray(line.coords)
         ax.plot(xy[:, 0], xy[:, 1], label=style.pop("label", None) if first else None, **style)
         first = False
+
+
+#: what the pictures read of a run: the trace's arrays, the coverage's shapes, the metrics' keys
+TRACE_KEYS = ("t", "tracking_error", "lowered", "axle", "route_xy", "carts")
+SHAPE_KEYS = ("field", "worked", "skipped", "double", "outside", "swaths", "headland_rings")
+FIGURE_KEYS = ("tracking_rms_m", "tracking_p95_m", "tracking_max_m")
+LINES = ("LineString", "LinearRing")
+
+
+def _run_problem(trace: dict, shapes: dict, metrics) -> str:
+    """'' where a run's files hold what the report reads, in consistent shapes; else what is wrong."""
+    missing = [f"trace.npz {k}" for k in TRACE_KEYS if k not in trace] + \
+        [f"coverage.json {k}" for k in SHAPE_KEYS if k not in shapes]
+    if not isinstance(metrics, dict) or not isinstance(metrics.get("figures"), dict):
+        return "metrics.json is not a field run's metrics (no figures)"
+    missing += [f"metrics.json {k}" for k in ("field", "train", "verdict") if k not in metrics]
+    missing += [f"metrics.json figures.{k}" for k in FIGURE_KEYS if not isinstance(metrics["figures"].get(k), (int, float))]
+    if missing:
+        return "missing " + ", ".join(missing)
+    import shapely
+
+    kinds = {"field": ("Polygon", "MultiPolygon"), "swaths": LINES, "headland_rings": LINES}
+    wrong = [f"coverage.json {k} holds a {part.geom_type}" for k, ok in kinds.items()
+             for part in shapely.get_parts(shapes[k])[:1] if part.geom_type not in ok]
+    if wrong:
+        return ", ".join(wrong)
+    rows = {k: np.shape(trace[k])[:1] for k in ("t", "tracking_error", "lowered", "axle")}
+    if len(set(rows.values())) != 1 or np.ndim(trace["axle"]) != 3 or np.shape(trace["axle"])[1:] != \
+            (len(trace["carts"]), 2) or np.ndim(trace["route_xy"]) != 2 or np.shape(trace["route_xy"])[1] != 2:
+        return "trace.npz's arrays of inconsistent shapes (" + ", ".join(
+            f"{k} {np.shape(trace[k])}" for k in ("t", "tracking_error", "lowered", "axle", "route_xy", "carts")) + ")"
+    return ""
 
 
 def field_figure(data: dict):
