@@ -60,7 +60,7 @@ DRIVE = Schema("Field scene: drive", "drive", "How the field is driven (the impl
 FIELD_SCENE = Schema("Field scene file", "top level", "A field and how it is to be worked (config/fieldwork/*.yaml): "
                      "what mta field run takes in place of a field, and what a sweep's scenes may list.", (
     Field("name", TEXT, "the scene's name", default_text="the file's stem", also="at most 100 printable characters "
-          "without / or \\"),
+          "without / or \\, not . or .."),
     Field("field", TEXT, "the field file (GeoJSON in WGS84, or YAML in local metres), relative to this file"),
     Field("plan", MAPPING, "how the field is planned", default=None, schema=PLAN, default_text="every option's default"),
     Field("drive", MAPPING, "how it is driven", default=None, schema=DRIVE, default_text="every setting's default"),
