@@ -25,24 +25,54 @@ class Parser(argparse.ArgumentParser):
 
 
 def check_main(args: argparse.Namespace) -> int:
-    """The files by the loader's rules, and what a run builds from them beyond those: the robot
-    model (its frames and joints named after the carts), so check refuses what run, urdf and the
-    node would; a note where a scene's set speed is one its governor cannot hold on the level, or
-    up a plane's fall line whatever the scene's path (the level chooser's bound, run.fidelity.unheld_speed;
-    none on a height grid): a run's report says whether it did."""
+    """The files by their readers' rules (``checked_file``), and what a run builds from a train or
+    scene beyond those: the robot model (its frames and joints named after the carts), so check
+    refuses what run, urdf and the node would; a note where a scene's set speed is one its governor
+    cannot hold on the level, or up a plane's fall line whatever the scene's path (the level
+    chooser's bound, run.fidelity.unheld_speed; none on a height grid): a run's report says whether it did."""
     from .config import resolve_config_path
     from .messages.urdf import robot_model
     from .physics.loader import check_files
-    from .physics.spec import Scene
+    from .physics.spec import Scene, Train
     from .run.fidelity import unheld_speed
 
     def built(loaded) -> list[str]:
+        if not isinstance(loaded, (Scene, Train)):
+            return []
         robot_model(loaded.train if isinstance(loaded, Scene) else loaded)
         unheld = unheld_speed(loaded) if isinstance(loaded, Scene) else ""
         return [f"speed: {unheld} (whether it does on the scene's path, a run's report says: set speed held)"] \
             if unheld else []
 
-    return check_files([resolve_config_path(f) for f in args.files], built)
+    return check_files([resolve_config_path(f) for f in args.files], built, checked_file)
+
+
+def checked_file(path):
+    """A file ``mta check`` takes, read by its own reader: a field (GeoJSON, or YAML with
+    ``boundary``), a field scene (``field``), a sweep (``vary``), else a train (``carts``) or a
+    scene (``train``)."""
+    from pathlib import Path
+
+    from .physics.loader import load_file, read_yaml_mapping
+
+    if Path(path).suffix.lower() in (".geojson", ".json"):
+        from .field.boundary import load_field
+
+        return load_field(path)
+    data = read_yaml_mapping(path)
+    if "vary" in data:
+        from .sweep.spec import load
+
+        return load(path)
+    if "boundary" in data:
+        from .field.boundary import load_field
+
+        return load_field(path)
+    if "field" in data and "train" not in data:
+        from .field.scene import load_field_scene
+
+        return load_field_scene(path)
+    return load_file(path)
 
 
 def urdf_main(args: argparse.Namespace) -> int:
@@ -142,8 +172,9 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
     add_tool(sub, "analyze", "plots, summary and CSV of one bag, or of several compared", selected)
 
-    p = sub.add_parser("check", help="validate train and scene files without running them")
-    p.add_argument("files", nargs="+", help="YAML files (config/trains/*.yaml, config/scenes/*.yaml)")
+    p = sub.add_parser("check", help="validate train, scene, field and sweep files without running them")
+    p.add_argument("files", nargs="+", help="trains, scenes, fields (YAML or GeoJSON), field scenes, sweeps "
+                                            "(config/{trains,scenes,fields,fieldwork,sweeps}/*)")
     p.set_defaults(func=check_main)
 
     p = sub.add_parser("urdf", help="print the URDF of a scene's train, as the node publishes it on robot_description")

@@ -155,3 +155,23 @@ def test_a_run_takes_the_nodes_rule_for_its_frame(tmp_path, frame, capsys):
                      "--frame-id", frame, "--quiet"]) == 2
     one_line(capsys, "--frame-id: ", "a frame name: 1 to 256 printable characters")
     assert not (tmp_path / "r.mcap").exists()
+
+
+def test_check_takes_every_kind_of_file_the_commands_read(tmp_path, capsys):
+    """Trains, scenes, fields (YAML, GeoJSON), field scenes and sweeps, each by its own reader: every
+    shipped file is ok; a bad one of each kind is refused with that reader's own rule (before, a
+    field or sweep was 'a train (with carts) or a scene (with train)')."""
+    shipped = sorted(p for kind in ("trains", "scenes", "fields", "fieldwork", "sweeps")
+                     for p in (CONFIG / kind).iterdir() if p.suffix in (".yaml", ".geojson"))
+    assert cli.main(["check", *map(str, shipped)]) == 0
+    assert capsys.readouterr().out.count("ok: ") == len(shipped)
+    bad = {"field.yaml": ("name: f\nboundary: [[0, 0], [1, 0]]\n", "a ring of at least 3 distinct points"),
+           "field.geojson": ('{"type": "Feature", "geometry": {"type": "Polygon", "coordinates": '
+                             '[[[39.0, 45.0], [39.01, NaN], [39.0, 45.01], [39.0, 45.0]]]}}', "NaN"),
+           "work.yaml": (f"field: {CONFIG / 'fields' / 'rectangle.yaml'}\nplan: {{angle_deg: .nan}}\n", "angle_deg"),
+           "sweep.yaml": (f"name: s\ntrain: {TRAIN}\nscenes: [{CONFIG / 'scenes' / 'headland_turn.yaml'}]\n"
+                          "vary:\n  - path: carts[9].length\n    values: [1, 2]\n", "carts[9]")}
+    for name, (text, words) in bad.items():
+        (tmp_path / name).write_text(text)
+        assert cli.main(["check", str(tmp_path / name)]) == 2, name
+        one_line(capsys, "error: ", words)

@@ -491,15 +491,17 @@ def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
     fail("file", f"keys {show(list(data))}", "top level", source, "a train (with carts) or a scene (with train)")
 
 
-def check_files(paths: Iterable[Union[str, os.PathLike]], also: Optional[Callable] = None) -> int:
+def check_files(paths: Iterable[Union[str, os.PathLike]], also: Optional[Callable] = None,
+                load: Callable = load_file) -> int:
     """Check each file, print ``ok: PATH`` or ``error: MESSAGE``; exit code 0, or 2 on a fault.
     ``also(loaded)``: what else a run builds from it (the command's: the robot model's frames),
     raising InputError where it cannot, so check refuses what a run would; what it returns (lines)
-    is printed after the ok as ``note: PATH: LINE`` (what a run will not do as the file asks)."""
+    is printed after the ok as ``note: PATH: LINE`` (what a run will not do as the file asks).
+    ``load``: the file's reader (the command's: trains and scenes, fields, sweeps)."""
     status = 0
     for path in paths:
         try:
-            loaded = load_file(path)
+            loaded = load(path)
             notes = also(loaded) if also is not None else None
         except validate.InputError as error:
             print(f"error: {error}", file=sys.stderr)
