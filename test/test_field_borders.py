@@ -109,3 +109,14 @@ def test_a_damaged_run_folder_is_one_line(tmp_path, capsys):
             (None, None, "coverage.json headland_rings holds a Polygon")):
         folder = run_folder(tmp_path, trace, metrics, polygon_rings="headland" in words)
         field_refused(capsys, ("run: ", "a readable field run", words), "report", folder, "--out", tmp_path / "r")
+
+
+def test_a_turn_kind_asked_but_not_made_is_said(tmp_path, capsys):
+    """--turn fishtail on the rectangle: its swaths are all a U apart or more, so every turn is a U;
+    the plan says the kind asked is made only between swaths closer than the narrowest U."""
+    code, out, err = field_command(capsys, "plan", CONFIG / "fields" / "rectangle.yaml", "--train", TRAIN,
+                                   "--turn", "fishtail", "--out", tmp_path / "p")
+    assert code == 0, err
+    assert "turns 14 u" in out
+    assert "turn fishtail: made only between swaths closer than the narrowest U, 19.8 m (a U wherever one fits: " \
+           "14 of them)" in out

@@ -295,6 +295,9 @@ def plan_notes(field, options, turn: Turning, measured: Reach, layout: Layout, r
     kinds = ", ".join(f"{n} {k}" for k, n in sorted(run.kinds.items()))
     notes.append(f"turns: {kinds or 'none'}" + (" (a U narrower than the narrowest the train follows: it cannot "
                                                 "follow it)" if run.kinds["tight u"] else ""))
+    if options.turn in ("bulb", "fishtail") and run.kinds["u"]:
+        notes.append(f"turn {options.turn}: made only between swaths closer than the narrowest U, {turn.min_u:.1f} m "
+                     f"(a U wherever one fits: {run.kinds['u']} of them)")
     if run.unfollowable:
         notes.append(f"{run.unfollowable} U-turns ask more of the steering than the limits (the least asking "
                      "shape taken)")

@@ -28,7 +28,7 @@ class PlanOptions:
     angle: Optional[float] = None  # rad from +x: the swaths' direction; None: the angle that minimises turns
     headlands: Optional[int] = None  # headland rings; None: the field's own
     route: str = "auto"  # ROUTES: the order of the swaths (auto: the fewest turns narrower than the narrowest U)
-    turn: str = "auto"  # TURNS: the kind of every headland turn (auto: u where it fits, else bulb)
+    turn: str = "auto"  # TURNS: the kind of a turn narrower than the narrowest U (a U wherever one fits)
     work_headlands: bool = True  # the headland rings are worked, last, after the swaths
 
 
