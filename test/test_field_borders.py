@@ -120,3 +120,18 @@ def test_a_turn_kind_asked_but_not_made_is_said(tmp_path, capsys):
     assert "turns 14 u" in out
     assert "turn fishtail: made only between swaths closer than the narrowest U, 19.8 m (a U wherever one fits: " \
            "14 of them)" in out
+
+
+def test_a_train_that_cannot_turn_is_told_why(tmp_path, capsys):
+    """A steering lock of 1 deg was blamed on max_hitch_angle (80 deg, fine); an implement 1000 m
+    aside on the number of headland rings. Each line now names the cause."""
+    default = TRAIN.read_text()
+    for change, words in ((("max_angle_deg: 40", "max_angle_deg: 1.0"), ("max_angle_deg: 1 in actuator",
+                                                                           "a steering lock that leaves a planned turn room")),
+                          (("  offset: 1.5 ", "  offset: 1000 "), ("corners turns of radius 1000 m",
+                                                                     "implement.offset"))):
+        assert change[0] in default, change
+        train = tmp_path / "train.yaml"
+        train.write_text(default.replace(change[0], change[1], 1))
+        field_refused(capsys, words, "plan", CONFIG / "fields" / "rectangle.yaml", "--train", train,
+                      "--out", tmp_path / "p")

@@ -56,7 +56,7 @@ YAML_FAULTS = {
     "hole_outside": ("boundary: [[0, 0], [100, 0], [100, 100], [0, 100]]\nholes: [[[200, 200], [200, 210], "
                      "[210, 210], [210, 200]]]", "inside the field's boundary"),
     "too_many_headlands": ("boundary: [[0, 0], [100, 0], [100, 30], [0, 30]]\nheadlands: 3",
-                           "few enough to leave ground inside them"),
+                           "few and tight enough to leave ground inside them"),
     "too_large_a_route": ("boundary: [[0, 0], [20000, 0], [20000, 20000], [0, 20000]]", "vertices"),
 }
 POLYGON = [[39.0, 45.0], [39.01, 45.0], [39.01, 45.01], [39.0, 45.01], [39.0, 45.0]]

@@ -147,8 +147,9 @@ def lay_out(field: Field, options: PlanOptions, turn: Turning, rings: int, corne
     width, notes = options.width, []
     band = headlands(field.polygon, rings, width, corners.radius, SPACING, corners, follows)
     if band.inner.is_empty or band.inner.area <= 0.0:
-        fail("headlands", f"{rings} rings of {width:g} m", "few enough to leave ground inside them", "field",
-             field.source, FieldError)
+        fail("headlands", f"{rings} rings of {width:g} m, their corners turns of radius {corners.radius:.4g} m",
+             "few and tight enough to leave ground inside them (the radius is the train's: its lock, hitches and "
+             "implement.offset)", "field", field.source, FieldError)
     if options.angle is None:
         found, tried = best_angle(band.inner, field.polygon, width, options.overlap)
         notes.append(f"angle {math.degrees(found.angle):.1f} deg: the fewest swaths ({len(found.swaths)}) "
