@@ -163,4 +163,6 @@ def test_a_field_run_states_its_error_within_its_bounds(field_file):
     assert a.shape == b.shape  # the same ticks: the same route driven to its end
     true = float(np.max(np.linalg.norm(a - b, axis=2)))
     assert true <= work.accuracy.error <= 10 * true, (work.accuracy.line(), true)
-    assert work.accuracy.tolerance is None and "step halving" in work.accuracy.line()
+    assert work.accuracy.tolerance == 0.01 and work.accuracy.meets and "step halving" in work.accuracy.line()
+    assert "within the tolerance 0.01 m" in work.accuracy.line()
+
