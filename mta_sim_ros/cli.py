@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import sys
 
 from .validate import EXIT_INPUT, InputError, one_line
@@ -40,9 +41,17 @@ def check_main(args: argparse.Namespace) -> int:
         if not isinstance(loaded, (Scene, Train)):
             return []
         robot_model(loaded.train if isinstance(loaded, Scene) else loaded)
-        unheld = unheld_speed(loaded) if isinstance(loaded, Scene) else ""
-        return [f"speed: {unheld} (whether it does on the scene's path, a run's report says: set speed held)"] \
+        if not isinstance(loaded, Scene):
+            return []
+        unheld = unheld_speed(loaded)
+        notes = [f"speed: {unheld} (whether it does on the scene's path, a run's report says: set speed held)"] \
             if unheld else []
+        ticks = loaded.duration * loaded.publish_rate
+        if abs(ticks - round(ticks)) > 1e-9:  # a run takes the whole ticks within the duration
+            whole = math.floor(ticks + 1e-9)
+            notes.append(f"duration: {loaded.duration:g} s is not a whole number of ticks at {loaded.publish_rate:g} "
+                         f"Hz: a run takes {whole} ticks, {whole / loaded.publish_rate:.6g} s")
+        return notes
 
     return check_files([resolve_config_path(f) for f in args.files], built, checked_file)
 

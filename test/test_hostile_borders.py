@@ -175,3 +175,19 @@ def test_check_takes_every_kind_of_file_the_commands_read(tmp_path, capsys):
         (tmp_path / name).write_text(text)
         assert cli.main(["check", str(tmp_path / name)]) == 2, name
         one_line(capsys, "error: ", words)
+
+
+def test_a_scene_whose_duration_is_no_whole_number_of_ticks_is_noted(tmp_path, capsys):
+    """5 s at 3.3 Hz runs 16 ticks, 4.848 s: check says so (it ran silently short)."""
+    path = tmp_path / "s.yaml"
+    path.write_text(f"train: {TRAIN}\nduration: 5\npublish_rate: 3.3\nsteering: {{maneuver: straight}}\n")
+    assert cli.main(["check", str(path)]) == 0
+    assert capsys.readouterr().out.splitlines()[1] == (
+        f"note: {path}: duration: 5 s is not a whole number of ticks at 3.3 Hz: a run takes 16 ticks, 4.84848 s")
+
+
+def test_a_train_that_is_a_folder_is_called_one(tmp_path, capsys):
+    path = tmp_path / "s.yaml"
+    path.write_text("train: .\nduration: 2\nsteering: {maneuver: straight}\n")
+    assert cli.main(["check", str(path)]) == 2
+    one_line(capsys, "train: '.'", "(a folder: ")

@@ -149,7 +149,8 @@ def _train_from_metadata(path: Path) -> tuple[Any, str]:
     meta = run_record(path)
     if not meta:
         raise AnalyzeError(f"{path}: no metadata record '{RECORD}' and no {RUN_METADATA_TOPIC} topic: the bag was "
-                           "not written by mta run or of the mta_sim_ros node")
+                           "not written by mta run or the mta_sim_ros node, or lost its record (a bag rebuilt by mta "
+                           "recover keeps what was written before the cut)")
     if "scene_yaml" in meta:  # the scene's terrain, if any, is on its train (loader.scene_from_data)
         return recorded_scene(meta, str(path)).train, recorded_scene_name(meta, str(path))
     return recorded_train(meta, str(path)), recorded_scene_name(meta, str(path))

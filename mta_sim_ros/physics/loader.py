@@ -461,7 +461,8 @@ def _scene_train(top: Section) -> spec.Train:
     relative = SCENE["train"].read(top)
     path = os.path.normpath(os.path.join(os.path.dirname(top.source), relative))
     if not os.path.isfile(path):
-        top.fail("train", relative, f"a train file, relative to the scene's folder (not found: {path})")
+        found = "a folder" if os.path.isdir(path) else "not a file" if os.path.exists(path) else "not found"
+        top.fail("train", relative, f"a train file, relative to the scene's folder ({found}: {path})")
     return load_train(path)
 
 
