@@ -191,3 +191,12 @@ def test_a_train_that_is_a_folder_is_called_one(tmp_path, capsys):
     path.write_text("train: .\nduration: 2\nsteering: {maneuver: straight}\n")
     assert cli.main(["check", str(path)]) == 2
     one_line(capsys, "train: '.'", "(a folder: ")
+
+
+def test_a_sweep_choice_refused_is_named_by_its_value(tmp_path, capsys):
+    """A choice's label in the results is its index; a refusal named it so ('= 1' for 'zigzag')."""
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"name: s\ntrain: {TRAIN}\nscenes: [{CONFIG / 'fieldwork' / 'rectangle.yaml'}]\n"
+                    "vary:\n  - path: scene.plan.turn\n    choices: [u, zigzag]\n")
+    assert cli.main(["check", str(path)]) == 2
+    one_line(capsys, "vary[0] (scene.plan.turn = 'zigzag')", "turn: 'zigzag'", "one of auto, u, bulb, fishtail")

@@ -55,7 +55,7 @@ from .. import validate
 from ..field.scene import field_scene_from_data, is_field_scene
 from ..physics import loader
 from ..physics.spec import Scene
-from ..validate import InputError, Range
+from ..validate import InputError, Range, show
 
 METHODS = ("grid", "random", "saltelli")
 FIDELITY = ("kinematic", "dynamic", "slip", "auto")
@@ -484,7 +484,11 @@ def _check_ends(spec: Spec) -> None:
 
 
 def _shown(f: Factor, value) -> str:
-    return f.labels[int(value)] if f.kind != "number" else f"{value:g}"
+    """A factor's value as a refusal names it: a number, a choice itself (its label is its index
+    unless it is a train file), an order's label."""
+    if f.kind == "number":
+        return f"{value:g}"
+    return show(f.values[int(value)]) if f.kind == "choice" and f.target != "train_file" else f.labels[int(value)]
 
 
 def build(spec: Spec, scheme: tuple):
