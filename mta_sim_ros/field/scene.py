@@ -48,8 +48,9 @@ PLAN = Schema("Field scene: plan", "plan", "How the field is planned (mta field 
     Field("headlands", NUMBER, "headland rings along the boundary and round each obstacle", "", HEADLANDS, None,
           default_text="the field's own (its file's headlands), more where the turns need them"),
     Field("route", CHOICE, "the order of the swaths", choices=ROUTES, default=PlanOptions.route),
-    Field("turn", CHOICE, "the kind of a headland turn between swaths closer than the "
-          "narrowest U (a U wherever one fits; auto: a bulb there, u: a U tighter than the train follows)", choices=TURNS, default=PlanOptions.turn),
+    Field("turn", CHOICE, "the kind of a headland turn between swaths closer than the narrowest U (a U "
+          "wherever one fits; auto: a bulb there, u: a U tighter than the train follows)", choices=TURNS,
+          default=PlanOptions.turn),
     Field("work_headlands", FLAG, "the headland rings are worked, after the swaths", default=PlanOptions.work_headlands),
 ))
 DRIVE = Schema("Field scene: drive", "drive", "How the field is driven (the implement-tracking controller's "

@@ -174,7 +174,7 @@ def load(path: str | os.PathLike) -> Spec:
     folder = os.path.dirname(os.path.abspath(source))
     name = top.text("name", os.path.splitext(os.path.basename(source))[0])
     if len(name) > 100 or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
-        top.fail("name", name, "a name of at most 100 letters, digits, '_', '-' or '.'")
+        top.fail("name", name, "a name of at most 100 ASCII letters (A-Z, a-z), digits, '_', '-' or '.'")
     train_rel = top.text("train")
     train_data, train_source = _read_train(top, "train", train_rel, folder)
     scenes = _scenes(top, folder)

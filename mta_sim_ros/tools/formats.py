@@ -127,8 +127,8 @@ def sweep_section() -> list[str]:
     that misses one of the spec's fields."""
     sp = sweep_spec
     top = {
-        "name": ("string", "the file's stem", "at most 100 letters, digits, '_', '-' or '.'; names the results "
-                 "folder sweeps/<name>/"),
+        "name": ("string", "the file's stem", "at most 100 ASCII letters (A-Z, a-z), digits, '_', '-' or '.'; "
+                 "names the results folder sweeps/<name>/"),
         "train": ("string", "**required**", "the base train file, relative to the spec; it must load"),
         "scenes": ("list of strings", "**required**", f"1 to {sp.MAX_SCENES} scene files, relative to the spec: "
                    "manoeuvre scenes, or field scenes (a field worked whole: [Field scene file](#field-scene-file)); "
