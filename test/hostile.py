@@ -72,3 +72,29 @@ def short_scene(folder: Path, duration: float = 2.0, rate: float = 50.0, train: 
                     "  params: {t0: 0.2, amplitude: 0.1, duration: 1.0}\n"
                     f"speed: 3.0\nintegrator: {{method: rk4, step: 0.01}}\npublish_rate: {rate}\n")
     return path
+
+
+def damaged_bag(source: Path, folder: Path) -> tuple[Path, Path]:
+    """(intact, damaged): ``source`` rewritten with its chunks uncompressed (the same records), and
+    that copy with one low bit of one /odom message flipped inside its chunk, whose CRC then fails
+    (uncompressed, the message's bytes can be found in the file; the chunk stays decodable)."""
+    intact = folder / "intact.mcap"
+    with open(source, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        with BagWriter(str(intact), metadata=meta, compression="none") as copy:
+            for c in summary.channels.values():
+                schema = summary.schemas[c.schema_id]
+                copy.add_channel(c.topic, schema.name, schema.data, c.metadata)
+            for _, channel, message in reader.iter_messages(log_time_order=False):
+                copy.write_raw(channel.topic, message.data, message.log_time)
+    with open(intact, "rb") as f:
+        pose = next(m.data for _, _, m in make_reader(f).iter_messages(topics=["/odom"]))
+    data = bytearray(intact.read_bytes())
+    at = data.find(pose)
+    assert at > 0 and data.find(pose, at + 1) < 0
+    data[at + len(pose) - 9] ^= 0x01  # a low bit of a covariance or twist value near the end of one /odom
+    damaged = folder / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    return intact, damaged

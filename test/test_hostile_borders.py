@@ -11,11 +11,9 @@ import os
 
 import numpy as np
 import pytest
-from hostile import CONFIG, assert_refused, mta, short_scene
-from mcap.reader import make_reader
+from hostile import CONFIG, assert_refused, damaged_bag, mta, short_scene
 
 from mta_sim_ros import cli
-from mta_sim_ros.bag import BagWriter
 
 TRAIN = CONFIG / "trains" / "default.yaml"
 
@@ -79,37 +77,13 @@ def test_analyze_never_writes_over_a_bag_it_reads(bag, tmp_path, name, capsys):
     assert sorted(p.name for p in (tmp_path / "out").rglob("*") if p.is_file()) == [target.name]
 
 
-def uncompressed_copy(source, out):
-    """``source`` rewritten with its chunks uncompressed (the same records), so a byte of a message
-    can be found in the file and flipped."""
-    with open(source, "rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-        with BagWriter(str(out), metadata=meta, compression="none") as copy:
-            for c in summary.channels.values():
-                schema = summary.schemas[c.schema_id]
-                copy.add_channel(c.topic, schema.name, schema.data, c.metadata)
-            for _, channel, message in reader.iter_messages(log_time_order=False):
-                copy.write_raw(channel.topic, message.data, message.log_time)
-    return out
-
-
 def test_a_bag_whose_chunk_fails_its_crc_is_refused_not_read(bag, tmp_path, capsys):
     """One bit of a pose flipped inside a chunk: the chunk's CRC no longer holds. Without the check
     the analysis read the changed number as the run's; now it is one line, exit 1, naming the tool
     that rebuilds what is intact. The intact copy is analysed (the check refuses only the damage)."""
-    intact = uncompressed_copy(bag, tmp_path / "intact.mcap")
+    intact, damaged = damaged_bag(bag, tmp_path)
     assert cli.main(["analyze", str(intact), "-o", str(tmp_path / "a")]) == 0
     capsys.readouterr()
-    with open(intact, "rb") as f:
-        pose = next(m.data for _, c, m in make_reader(f).iter_messages(topics=["/odom"]))
-    data = bytearray(intact.read_bytes())
-    at = data.find(pose)
-    assert at > 0 and data.find(pose, at + 1) < 0
-    data[at + len(pose) - 9] ^= 0x01  # a low bit of a covariance or twist value near the end of one /odom
-    damaged = tmp_path / "damaged.mcap"
-    damaged.write_bytes(bytes(data))
     assert cli.main(["analyze", str(damaged), "-o", str(tmp_path / "b")]) == 1
     one_line(capsys, "cannot read bag file", "CRC", f"mta recover {damaged} -o OUT.mcap")
     assert cli.main(["recover", str(damaged), "-o", str(tmp_path / "rebuilt.mcap")]) == 0

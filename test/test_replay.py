@@ -281,3 +281,18 @@ def test_replay_stops_on_sigterm_and_loops(run_bag, probe):
         out = player.communicate(timeout=10)[0]
     assert looped, out
     assert "stopped by signal" in out
+
+
+@pytest.mark.dds
+def test_replay_stops_at_a_damaged_chunk_in_one_line(run_bag, tmp_path):
+    """A bit flipped inside a chunk (its CRC fails): the player stops there, exit 1, one line naming
+    mta recover, no traceback, nothing of that chunk sent. The intact copy plays to its end (rc 0)."""
+    from hostile import damaged_bag
+
+    intact, damaged = damaged_bag(run_bag, tmp_path)
+    for bag, code in ((intact, 0), (damaged, 1)):
+        done = mta("replay", bag, "--rate", "1000", "--wait-for-subscribers", "0", timeout=120)
+        assert "Traceback" not in done.stderr and done.returncode == code, done.stderr[-2000:]
+    line = done.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"mta replay: cannot read bag file {damaged}") and "CRC" in line, line
+    assert f"mta recover {damaged} -o OUT.mcap" in line, line

@@ -42,7 +42,7 @@ import time
 from ..analysis.resimulation import ResimulationError, report, resimulate
 from ..bag import BagError
 from ..physics.spec import INTEGRATOR_METHODS as METHODS
-from ..validate import NON_NEGATIVE, POSITIVE, InputError, Range, number_arg
+from ..validate import NON_NEGATIVE, POSITIVE, InputError, Range, number_arg, one_line
 from .run import Progress
 
 #: Topics republished under their recorded (global) name; the others move with the namespace.
@@ -133,12 +133,11 @@ def play_main(args: argparse.Namespace) -> int:
         print(f"mta replay: cannot open bag file {args.bag}: {err.strerror or err}", file=sys.stderr)
         return EXIT_ERROR
     with f:
-        try:
-            reader = make_reader(f)
+        try:  # every chunk's CRC checked as it is read: a damaged one stops the play, never sent as data
+            reader = make_reader(f, validate_crcs=True)
             summary = reader.get_summary()
         except Exception as err:  # McapError, struct.error... on a damaged file
-            print(f"mta replay: cannot read bag file {args.bag}: {err!r} (a bag cut short: mta recover)",
-                  file=sys.stderr)
+            print(unreadable(args.bag, err), file=sys.stderr)
             return EXIT_ERROR
         if summary is None or summary.statistics is None or not summary.statistics.message_count:
             print(f"mta replay: {args.bag} has no messages (or no summary: mta recover)", file=sys.stderr)
@@ -163,6 +162,13 @@ def play_main(args: argparse.Namespace) -> int:
                   f"({(bag_end - bag_start) / 1e9:.3f} s after its first message)", file=sys.stderr)
             return EXIT_ERROR
         return _play(args, reader, summary, selected, origin, span)
+
+
+def unreadable(bag: str, err: Exception, published: int | None = None) -> str:
+    """The one line of a bag that cannot be read (on opening it, or after ``published`` messages)."""
+    what = one_line(f"{type(err).__name__}: {err}")[:200]
+    after = "" if published is None else f" after {published} messages"
+    return f"mta replay: cannot read bag file {bag}{after}: {what} (a bag cut short or damaged: mta recover {bag} -o OUT.mcap)"
 
 
 def _play(args, reader, summary, selected: set[str], origin: int, span: int) -> int:
@@ -210,22 +216,28 @@ def _play(args, reader, summary, selected: set[str], origin: int, span: int) -> 
         topics = sorted({summary.channels[c].topic for c in pubs})
         scale = 1.0 / (args.rate * 1e9)
         t0 = time.monotonic()
-        while not stop:
-            for _, channel, message in reader.iter_messages(topics=topics, start_time=origin, log_time_order=True):
-                pub = pubs.get(message.channel_id)
-                if pub is None:
-                    continue
-                due = t0 + (message.log_time - origin) * scale
-                while not stop and (left := due - time.monotonic()) > 0:
-                    time.sleep(min(left, 0.05))
-                if stop:
+        try:
+            while not stop:
+                for _, channel, message in reader.iter_messages(topics=topics, start_time=origin,
+                                                                log_time_order=True):
+                    pub = pubs.get(message.channel_id)
+                    if pub is None:
+                        continue
+                    due = t0 + (message.log_time - origin) * scale
+                    while not stop and (left := due - time.monotonic()) > 0:
+                        time.sleep(min(left, 0.05))
+                    if stop:
+                        break
+                    pub.publish(bytes(message.data))
+                    published += 1
+                    progress.update((message.log_time - origin) / 1e9)
+                if not args.loop:
                     break
-                pub.publish(bytes(message.data))
-                published += 1
-                progress.update((message.log_time - origin) / 1e9)
-            if not args.loop:
-                break
-            t0 += (span or 10**9) * scale  # the next pass starts where this one was due to end: no drift
+                t0 += (span or 10**9) * scale  # the next pass starts where this one was due to end: no drift
+        except Exception as err:  # a chunk damaged past the summary: its CRC, its compression
+            progress.close()
+            print(unreadable(args.bag, err, published), file=sys.stderr)
+            return EXIT_ERROR
         progress.close()
         # reliable topics: the last messages may still be on their way; leaving now would lose them
         end = time.monotonic() + ACK_TIMEOUT
