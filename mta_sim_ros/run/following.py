@@ -18,6 +18,7 @@ the set speed there.
 """
 from __future__ import annotations
 
+import collections
 import math
 
 from ..physics.kernel import NATURAL, limit_of
@@ -55,6 +56,7 @@ class GovernorWatch:
         self.speed = self.setpoint = math.nan  # m/s, the latest sample's
         self.duration = 0.0
         self._t = math.nan
+        self._recent = collections.deque()  # (t, |v_set - V|) over the latest HOLD s: is the gap closing?
 
     def add(self, out) -> None:
         if not self.active:
@@ -63,6 +65,9 @@ class GovernorWatch:
         self._t = out.t
         self.duration += dt
         self.speed, self.setpoint = out.speed, out.speed_setpoint
+        self._recent.append((out.t, abs(out.speed_setpoint - out.speed)))
+        while self._recent and self._recent[0][0] < out.t - HOLD:
+            self._recent.popleft()
         law = self.traction
         self.limit = limit_of(law.max_force, law.max_power, out.speed, NATURAL, NATURAL)
         error = out.speed_setpoint - out.speed
@@ -98,17 +103,17 @@ class GovernorWatch:
     def row(self) -> str:
         """The run report's cell: '' when there is no governor. "yes" where the governor never was at
         its limit and the run ends at its set-point; "yes, but for short spells" where each spell at
-        the limit was shorter than HOLD and the speed came back; "no" where one lasted HOLD or the run
-        ended in one; "not by the end" where the run ends off its set-point (CLOSE) with the governor
-        within its limit, still closing in (a start off the set speed, the gains kp, ki set how fast)."""
+        the limit was shorter than HOLD and the speed came back; "no" where one lasted HOLD; "not by
+        the end" where the run ends off its set-point (CLOSE), in a spell shorter than HOLD or with
+        the governor within its limit (a start off the set speed: the gains kp, ki set how fast)."""
         if not self.active:
             return ""
         end = "" if self.prescribed else self.end_gap()
         if self.total == 0.0:
             return f"not by the end: the governor within its limit throughout{end}" if end else \
                 "yes: the governor within its limit throughout"
-        verdict = "no" if self.longest >= HOLD or self.spell > 0.0 else \
-            "not by the end" if end else "yes, but for short spells"
+        verdict = "no" if self.longest >= HOLD else \
+            "not by the end" if end or self.spell > 0.0 else "yes, but for short spells"
         spells = f"{seconds(self.total)} of {seconds(self.duration)} s (longest {seconds(self.longest)} s)"
         if self.prescribed:
             return (f"{verdict} (the kinematic level prescribes it): the force it takes over the governor's limit "
@@ -125,7 +130,9 @@ class GovernorWatch:
         if not abs(error) > max(CLOSE * abs(self.setpoint), CLOSE_FLOOR):
             return ""
         word = "short of" if error * self.setpoint > 0.0 else "over"
-        return f"; the speed ends {abs(error):.3g} m/s {word} its set-point, the governor still closing in"
+        then = self._recent[0][1] if self._recent else math.nan
+        trend = "closing in" if abs(error) < then else "drifting from it"  # over the latest HOLD s
+        return f"; the speed ends {abs(error):.3g} m/s {word} its set-point, {trend} over its last {HOLD:g} s"
 
 
 def seconds(t: float) -> str:
