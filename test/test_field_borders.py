@@ -59,16 +59,23 @@ def test_two_right_angles_off_by_round_off_are_not_merged_far_away():
 
 
 def test_a_field_name_never_leads_out_of_the_output_folder(tmp_path, capsys):
-    for name in ("../../etc/x", "/tmp/abs", "..", "a\\b"):
+    """A name that cannot name one folder is refused where it would (no --out): plans/<name> and
+    runs/<name>; with --out the field plans ('Поле 12/3', as farm software names fields)."""
+    for name in ("../../etc/x", "/tmp/abs", "..", "a\\b", "Поле 12/3"):
         path = tmp_path / "f.yaml"
         path.write_text(json.dumps({"name": name, "boundary": [[0, 0], [300, 0], [300, 300], [0, 300]]}))
-        field_refused(capsys, ("name: ", "without / or \\", "not . or .."), "plan", path, "--train", TRAIN)
+        for command in ("plan", "run"):
+            field_refused(capsys, ("--out: (not given)", f"the field's name {name!r} cannot name the default folder",
+                                   "plans/<name>" if command == "plan" else "runs/<name>"), command, path,
+                          "--train", TRAIN)
+    code, out, err = field_command(capsys, "plan", path, "--train", TRAIN, "--out", tmp_path / "given")
+    assert code == 0 and (tmp_path / "given" / "plan.csv").is_file(), err
 
 
 def test_a_plan_of_another_field_is_refused(tmp_path, capsys):
     _, folder = plan_of(tmp_path, capsys, rounded(NOISY), "rounded")
     for plan in ("plan.csv", "plan.mcap"):
-        field_refused(capsys, ("field: 'rounded' in plan of", "the field it is run on, rectangle"), "run",
+        field_refused(capsys, ("field: 'rounded (", "the field it is run on, rectangle"), "run",
                       CONFIG / "fields" / "rectangle.yaml", "--train", TRAIN, "--plan", folder / plan,
                       "--out", tmp_path / "run")
     assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())

@@ -236,11 +236,19 @@ def _point(value, field: str, source: str, limit: float, unit: str, geographic: 
 
 def _name(data: dict, source: str, default: Optional[str] = None) -> str:
     name = data.get("name", default if default is not None else Path(source).stem)
-    if not isinstance(name, str) or not 0 < len(name) <= 100 or not name.isprintable() \
-            or any(c in name for c in "/\\") or name in (".", ".."):  # it names the plan's and the run's folder
-        _fail("name", validate.show(name), "1 to 100 printable characters without / or \\, not . or ..", "top level",
-              source)
+    if not isinstance(name, str) or not 0 < len(name) <= 100 or not name.isprintable():
+        _fail("name", validate.show(name), "1 to 100 printable characters", "top level", source)
     return name
+
+
+def default_folder(parent: str, field: "Field", flag: str = "--out") -> Path:
+    """parent/<the field's name>, the folder a command writes into when ``flag`` is not given; a name
+    that cannot name one folder there (a / or \\, . or ..) is refused: give ``flag``."""
+    name = field.name
+    if any(c in name for c in "/\\") or name in (".", ".."):
+        _fail(flag, "(not given)", f"given: the field's name {validate.show(name)} cannot name the default folder "
+              f"{parent}/<name> (it holds / or \\, or is . or ..)", "command line", field.source)
+    return Path(parent) / name
 
 
 def _headlands(data: dict, source: str) -> int:

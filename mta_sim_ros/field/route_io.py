@@ -90,15 +90,15 @@ def _number(text: str, what: str, line: int, source: str) -> float:
 
 
 def _rows(text: str, source: str) -> tuple[list, list, str, str]:
-    """(header or [], [(line number, cells)], the spacing comment's value or '', the name of the
-    field a plan's own CSV says it is of, or '')."""
+    """(header or [], [(line number, cells)], the spacing comment's value or '', what a plan's own CSV
+    says it is of ("NAME (FILE)", its first line past PLAN_LINE up to the frame), or '')."""
     rows, spacing, of = [], "", ""
     for number, raw in enumerate(text.splitlines(), 1):
         line = raw.strip()
         if line.startswith(SPACING_LINE.strip()):
             spacing = line[len(SPACING_LINE.strip()):].strip()
         if line.startswith(PLAN_LINE) and not of:  # "... of field NAME (FILE); frame: ..."
-            of = line[len(PLAN_LINE):].rsplit("; frame:", 1)[0].rsplit(" (", 1)[0]
+            of = line[len(PLAN_LINE):].rsplit("; frame:", 1)[0]
         if not line or line.startswith("#"):
             continue
         rows.append((number, [c.strip() for c in next(csv.reader(io.StringIO(line)))]))
@@ -121,7 +121,7 @@ def csv_route(text: str, source: str, field=None) -> ReadRoute:
     if header and not {"x", "y"} <= set(header):
         _fail("header", show(",".join(header)), "columns x and y (or no header: x, y first)", source)
     if header and set(CSV_COLUMNS) <= set(header):
-        if field is not None and of and of != field.name:
+        if field is not None and of and not of.startswith(f"{field.name} ("):  # a name or file may hold " ("
             _fail("field", show(of), f"the field it is run on, {field.name}: a plan is made for one field (mta field "
                   "plan)", source, "plan")
         return _own_route(header, rows, spacing, source, field)

@@ -250,12 +250,12 @@ def turning(train, spacing: float | None = None) -> Turning:
     m, d, _ = implement_of(train)
     guard = guarded_steering(train)
     limit = min(guard - STEERING_ROOM, STEERING_SHARE * train.actuator.max_angle)
-    if limit <= 0.0:  # the steering's own lock leaves the turns no room
+    if limit <= 0.0 and guard >= train.actuator.max_angle * (1.0 - 1e-9):  # the lock itself binds, not the hitches
         fail("max_angle_deg", f"{math.degrees(train.actuator.max_angle):g}",
              f"a steering lock that leaves a planned turn room: its feedforward asks at most {STEERING_SHARE:g} of "
              f"the lock and keeps {math.degrees(STEERING_ROOM):g} deg inside the guard's "
              f"{math.degrees(guard):.3g} deg", "actuator", train.source or train.name, FieldError)
-    if margin_at(train, 1e-6) < GUARD_MARGIN:
+    if limit <= 0.0 or margin_at(train, 1e-6) < GUARD_MARGIN:
         fail("max_hitch_angle", "too small", f"more than {math.degrees(HITCH_MARGIN):g} deg on every hitch "
              "(a planned turn keeps that margin to the jackknife limits)", "train", train.source or train.name,
              FieldError)

@@ -91,7 +91,9 @@ def plan_main(args: argparse.Namespace) -> int:
 
 def output_paths(args: argparse.Namespace, field, train) -> dict[str, Path]:
     """The three files in the output folder, checked before any work: none of them an input."""
-    folder = output_folder(args.out or Path("plans") / field.name, "--out")
+    from ..field.boundary import default_folder
+
+    folder = output_folder(args.out or default_folder("plans", field), "--out")
     paths = {name: folder / name for name in OUTPUTS}
     for path in paths.values():
         for source in (field.source, train.source):

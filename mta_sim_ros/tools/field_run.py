@@ -104,6 +104,7 @@ def settings_of(args: argparse.Namespace, scene):
 def inputs(args: argparse.Namespace):
     """(field scene, train, output paths, plan path or None), every one checked before any work."""
     from ..config import resolve_config_path
+    from ..field.boundary import default_folder
     from ..field.scene import load_field_or_scene
     from ..field.turning import implement_of
     from ..physics.loader import load_train
@@ -116,7 +117,7 @@ def inputs(args: argparse.Namespace):
     require_speed_law(train, "mta field run")
     settings_of(args, scene).speeds(train)  # the drive's speeds, before any folder is made
     plan_path = plan_file(args.plan) if args.plan else None
-    folder = output_folder(args.out or Path("runs") / field.name, "--out")
+    folder = output_folder(args.out or default_folder("runs", field), "--out")
     paths = {name: folder / name for name in OUTPUTS}
     for path in paths.values():
         for source in (field.source, train.source, plan_path):
@@ -213,8 +214,8 @@ def metrics_document(work: Work) -> dict:
             "figures": {k: v if math.isfinite(v) else None for k, v in result.values.items()},
             "excursions": [dataclasses.asdict(e) for e in result.excursions],
             "timings_s": work.timings, "plan_notes": list(plan.notes),
-            "accuracy": {"position_error_m": finite_or_none(work.accuracy.error), "estimate": work.accuracy.how,
-                         "line": work.accuracy.line()},
+            "accuracy": {"position_error_m": finite_or_none(work.accuracy.error), "tolerance_m": work.accuracy.tolerance,
+                         "meets": work.accuracy.meets, "estimate": work.accuracy.how, "line": work.accuracy.line()},
             "controller": {"speeds_m_s": list(run.controller.speeds), "lead_s": run.controller.lead,
                            "forward_angle_deg": math.degrees(run.controller.forward_angle),
                            "gains": [g.K.tolist() for g in run.controller.gains],

@@ -215,7 +215,7 @@ def field_section() -> list[str]:
                          f"{boundary.MIN_AREA:g} m^2 with the obstacles taken out; at most {boundary.MAX_VERTICES} "
                          "vertices in all rings",
              "entry": "within the field's width of its boundary", "holes": "inside the boundary",
-             "name": "1 to 100 printable characters without / or \\, not . or .."}
+             "name": "1 to 100 printable characters (one with / or \\, or . or .., names no default folder: give --out)"}
     lines += [f"| `{k}` | {_cell(FIELD_KEYS[k])} | {_cell(rules.get(k, ''))} |" for k in boundary.FIELD_KEYS]
     lines += ["", f"A file is at most {boundary.MAX_FILE_BYTES} bytes; JSON's NaN and Infinity are refused.",
               "", "## Field scene file", "", "`config/fieldwork/*.yaml`: a field and how it is worked, e.g. "
