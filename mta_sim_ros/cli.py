@@ -58,8 +58,8 @@ def check_main(args: argparse.Namespace) -> int:
 
 def checked_file(path):
     """A file ``mta check`` takes, read by its own reader: a field (GeoJSON, or YAML with
-    ``boundary``), a field scene (``field``), a sweep (``vary``), else a train (``carts``) or a
-    scene (``train``)."""
+    ``boundary``), a field scene (``field``: field.scene.is_field_scene), a sweep (``vary``), else a
+    train (``carts``) or a scene (``train``)."""
     from pathlib import Path
 
     from .physics.loader import load_file, read_yaml_mapping
@@ -77,9 +77,9 @@ def checked_file(path):
         from .field.boundary import load_field
 
         return load_field(path)
-    if "field" in data and "train" not in data:
-        from .field.scene import load_field_scene
+    from .field.scene import is_field_scene, load_field_scene
 
+    if is_field_scene(data):  # as mta field run and a sweep tell them
         return load_field_scene(path)
     return load_file(path)
 

@@ -405,7 +405,7 @@ def read_text(path: str | os.PathLike, error: type[InputError] = InputError) -> 
     that, whatever the file's size); a fault names the file."""
     source = str(path)
     if stream_kind(path):
-        fail("file", stream_kind(path), "a YAML file (a pipe's reader waits for a writer)", "document", source, error)
+        fail("file", stream_kind(path), "a YAML file (reading one waits for a writer)", "document", source, error)
     try:
         with open(path, "rb") as stream:
             data = stream.read(4 * MAX_YAML_CHARS + 1)
@@ -428,7 +428,7 @@ def read_limited(path: str | os.PathLike, limit: int, what: str, error: type[Inp
     size); a fault names the file and says it is ``what`` that was wanted ("a GeoJSON field file")."""
     source = str(path)
     if stream_kind(path):
-        fail("file", stream_kind(path), f"{what} (a pipe's reader waits for a writer)", "document", source, error)
+        fail("file", stream_kind(path), f"{what} (reading one waits for a writer)", "document", source, error)
     try:
         with open(path, "rb") as stream:
             data = stream.read(limit + 1)

@@ -143,7 +143,7 @@ def flat(rows, cols):
     (np.zeros((4, 4, 4)), (0, 0), 1.0, ("shape (4, 4, 4)",)),
     (np.array([["a"] * 4] * 4), (0, 0), 1.0, ("2-D array of numbers",)),
     (np.diag([0.0, 10.0, 0.0, 0.0, 0.0]), (0, 0), 5.0, ("a rise of 10 m over 5 m", f"at most {MAX_SLOPE_DEG:g} deg")),
-    (flat(4, 4), (0, 0), 0.0, ("spacing: 0", "> 0")),
+    (flat(4, 4), (0, 0), 0.0, ("spacing: 0", "in [0.01, 100000] m")),
     (flat(4, 4), (0, 0), -1.0, ("spacing: -1",)),
     (flat(4, 4), (0, 0), float("nan"), ("spacing: nan",)),
     (flat(4, 4), (0, 0), True, ("spacing: True",)),
@@ -152,7 +152,8 @@ def flat(rows, cols):
     (flat(4, 4), "00", 1.0, ("origin: '00'",)),
     (np.full((4, 4), 1e308), (0, 0), 1.0, ("heights: 1e+308 at row 0, column 0", "within +-100000 m")),  # overflowed
     (flat(4, 4), (1e300, 0), 1.0, ("origin:", "within +-1e+07 m")),
-    (flat(4, 4), (0, 0), 1e300, ("spacing: 1e+300", "<= 100000")),
+    (flat(4, 4), (0, 0), 1e300, ("spacing: 1e+300", "in [0.01, 100000] m")),
+    (flat(4, 4), (0, 0), 0.005, ("spacing: 0.005", "in [0.01, 100000] m")),  # as the scene's rule (schema.py)
 ])
 def test_hostile_grids_are_refused_in_one_line(heights, origin, spacing, expected):
     refused(lambda: grid_from(heights, origin, spacing, "terrain", "field.yaml"), *expected, "of field.yaml")

@@ -14,7 +14,7 @@ import os
 import numpy as np
 
 from ..validate import fail, show
-from .terrain import MAX_FILE_BYTES, MAX_NODES
+from .terrain import MAX_FILE_BYTES, MAX_HEIGHT, MAX_NODES
 
 
 def read_geotiff(path: str | os.PathLike, where: str = "terrain", source: str = "") \
@@ -45,6 +45,10 @@ def read_geotiff(path: str | os.PathLike, where: str = "terrain", source: str = 
         row, col = bad[0]
         fail("heights", f"{heights[row, col]} at row {row}, column {col} of {show(str(path))}", "finite numbers (m)",
              where, source)
+    if heights.size and float(np.max(np.abs(heights))) > MAX_HEIGHT:
+        row, col = np.unravel_index(int(np.argmax(np.abs(heights))), heights.shape)
+        fail("heights", f"{heights[row, col]:g} at row {row}, column {col} of {show(str(path))}",
+             f"heights within +-{MAX_HEIGHT:g} m", where, source)
     a, e = transform.a, transform.e
     if e < 0:  # north-up: row 0 is the north edge; the grid's rows run along +y
         heights = heights[::-1]

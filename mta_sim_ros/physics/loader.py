@@ -489,7 +489,8 @@ def load_file(path: Union[str, os.PathLike]) -> Union[spec.Train, spec.Scene]:
         return _train(data, source)
     if "train" in data:
         return _scene(data, source)
-    fail("file", f"keys {show(list(data))}", "top level", source, "a train (with carts) or a scene (with train)")
+    fail("file", f"keys {show(list(data))}", "top level", source, "a train (with carts) or a scene (with train); "
+         "mta check also takes fields (boundary), field scenes (field) and sweeps (vary)")
 
 
 def check_files(paths: Iterable[Union[str, os.PathLike]], also: Optional[Callable] = None,

@@ -362,7 +362,7 @@ TERRAIN = Schema("Terrain", "terrain", "The ground the train moves on: a plane (
     Field("origin", NUMBERS, "the world (x, y) of the grid's first node (first row, first column)", "m", POSITION,
           (0.0, 0.0), also="two numbers"),
     Field("spacing", NUMBER, "the distance between neighbouring nodes of the grid, along x and y", "m",
-          _span(0.01, terrain.MAX_SPACING, "m"), None, default_text="required with heights"),
+          _span(terrain.MIN_SPACING, terrain.MAX_SPACING, "m"), None, default_text="required with heights"),
 ), notes=(f"the slope at most {terrain.MAX_SLOPE_DEG:g} deg (a grid's between any two neighbouring nodes)",
           "heights with origin and spacing, or grade_percent and cross_slope_percent: not both",
           "on a height grid the train stays on the grid (a run stops where a cart's centre of mass leaves it)"))

@@ -69,7 +69,7 @@ MAX_FILE_BYTES = 256 * 2**20
 #: m: a height's, a grid origin's coordinates' and a node spacing's largest magnitude (Earth's relief spans
 #: some 20 km, a projected coordinate some 1e7 m; a scene's positions take the same): beyond them the
 #: spline's arithmetic overflows. A scene's origin and spacing are read by these rules (schema.py) too.
-MAX_HEIGHT, MAX_COORDINATE, MAX_SPACING = 1e5, 1e7, 1e5
+MAX_HEIGHT, MAX_COORDINATE, MIN_SPACING, MAX_SPACING = 1e5, 1e7, 0.01, 1e5
 
 
 class OffTerrain(ValueError):
@@ -334,8 +334,9 @@ def grid_from(heights: object, origin: object, spacing: object, where: str = "te
     """A HeightGrid from a 2-D array of heights (m), the (x, y) of its first node and the node
     spacing (m), checked: finite numbers, at least MIN_NODES nodes along each axis, at most
     MAX_NODES in all, no slope between neighbouring nodes over MAX_SLOPE_DEG."""
-    if not (isinstance(spacing, (int, float)) and not isinstance(spacing, bool) and 0 < spacing <= MAX_SPACING):
-        fail("spacing", show(spacing), f"a number > 0 and <= {MAX_SPACING:g} (m between nodes)", where, source)
+    if not (isinstance(spacing, (int, float)) and not isinstance(spacing, bool) and
+            MIN_SPACING <= spacing <= MAX_SPACING):
+        fail("spacing", show(spacing), f"in [{MIN_SPACING:g}, {MAX_SPACING:g}] m (between nodes)", where, source)
     if not (isinstance(origin, (list, tuple)) and len(origin) == 2
             and all(isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= MAX_COORDINATE
                     for v in origin)):

@@ -43,7 +43,7 @@ class Accuracy:
     """What a run states about its accuracy."""
 
     error: float  # m, the estimated largest position error (``points``) over the run
-    tolerance: float | None  # m, what the scene asked for (None: it asks for none, a field run's drive)
+    tolerance: float | None  # m, what the scene asked for (a field run: FIELD_TOLERANCE; None: none asked)
     method: str
     step: float  # s, the step the run took (the largest, for an adaptive method)
     how: str  # how the estimate was made
