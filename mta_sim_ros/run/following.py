@@ -18,7 +18,6 @@ the set speed there.
 """
 from __future__ import annotations
 
-import collections
 import math
 
 from ..physics.kernel import NATURAL, limit_of
@@ -56,7 +55,10 @@ class GovernorWatch:
         self.speed = self.setpoint = math.nan  # m/s, the latest sample's
         self.duration = 0.0
         self._t = math.nan
-        self._recent = collections.deque()  # (t, |v_set - V|) over the latest HOLD s: is the gap closing?
+        # (t, |v_set - V|) sampled once every HOLD s, the latest and the one before: is the gap closing?
+        # (two numbers kept, not every sample: the node's tick calls add)
+        self._mark = self._earlier = (math.nan, math.nan)
+        self._next_mark = -math.inf
 
     def add(self, out) -> None:
         if not self.active:
@@ -65,9 +67,9 @@ class GovernorWatch:
         self._t = out.t
         self.duration += dt
         self.speed, self.setpoint = out.speed, out.speed_setpoint
-        self._recent.append((out.t, abs(out.speed_setpoint - out.speed)))
-        while self._recent and self._recent[0][0] < out.t - HOLD:
-            self._recent.popleft()
+        if out.t >= self._next_mark:
+            self._earlier, self._mark = self._mark, (out.t, abs(out.speed_setpoint - out.speed))
+            self._next_mark = out.t + HOLD
         law = self.traction
         self.limit = limit_of(law.max_force, law.max_power, out.speed, NATURAL, NATURAL)
         error = out.speed_setpoint - out.speed
@@ -130,9 +132,11 @@ class GovernorWatch:
         if not abs(error) > max(CLOSE * abs(self.setpoint), CLOSE_FLOOR):
             return ""
         word = "short of" if error * self.setpoint > 0.0 else "over"
-        then = self._recent[0][1] if self._recent else math.nan
-        trend = "closing in" if abs(error) < then else "drifting from it"  # over the latest HOLD s
-        return f"; the speed ends {abs(error):.3g} m/s {word} its set-point, {trend} over its last {HOLD:g} s"
+        # against the mark HOLD to 2 HOLD s back (the latest may be this very sample), else the first
+        t_then, then = self._earlier if self._earlier[0] == self._earlier[0] else self._mark
+        trend = "closing in" if abs(error) < then else "drifting from it"
+        return (f"; the speed ends {abs(error):.3g} m/s {word} its set-point, {trend} over its last "
+                f"{self._t - t_then:.1f} s")
 
 
 def seconds(t: float) -> str:
