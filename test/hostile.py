@@ -38,15 +38,15 @@ def assert_refused(done: subprocess.CompletedProcess, *expected: str, code: int 
 
 
 def forge_bag(source: Path, out: Path, change: Callable[[dict], None],
-              message_time: Callable[[int], int] = lambda t: t) -> Path:
+              message_time: Callable[[int], int] = lambda t: t, compression: str = "zstd") -> Path:
     """A copy of the bag ``source`` whose record mta_sim_ros is changed in place by ``change``
-    and whose messages' log times go through ``message_time``."""
+    and whose messages' log times go through ``message_time``, its chunks ``compression``'s."""
     with open(source, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
         meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         change(meta["mta_sim_ros"])
-        with BagWriter(str(out), metadata=meta) as bag:
+        with BagWriter(str(out), metadata=meta, compression=compression) as bag:
             for c in summary.channels.values():
                 schema = summary.schemas[c.schema_id]
                 bag.add_channel(c.topic, schema.name, schema.data, c.metadata)
@@ -78,17 +78,7 @@ def damaged_bag(source: Path, folder: Path) -> tuple[Path, Path]:
     """(intact, damaged): ``source`` rewritten with its chunks uncompressed (the same records), and
     that copy with one low bit of one /odom message flipped inside its chunk, whose CRC then fails
     (uncompressed, the message's bytes can be found in the file; the chunk stays decodable)."""
-    intact = folder / "intact.mcap"
-    with open(source, "rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-        with BagWriter(str(intact), metadata=meta, compression="none") as copy:
-            for c in summary.channels.values():
-                schema = summary.schemas[c.schema_id]
-                copy.add_channel(c.topic, schema.name, schema.data, c.metadata)
-            for _, channel, message in reader.iter_messages(log_time_order=False):
-                copy.write_raw(channel.topic, message.data, message.log_time)
+    intact = forge_bag(source, folder / "intact.mcap", lambda record: None, compression="none")
     with open(intact, "rb") as f:
         pose = next(m.data for _, _, m in make_reader(f).iter_messages(topics=["/odom"]))
     data = bytearray(intact.read_bytes())
